@@ -1,0 +1,144 @@
+"""Compiled entry points around gjk_query: pose checks, frames, single and batched queries.
+
+Packing: ``ints = [kind_a, kind_b, max_iter, warm_a, warm_b]`` and
+``floats = [margin_a, margin_b, tol_abs, tol_rel, dx, dy, dz]`` (dx, dy, dz: the warm-start search
+direction in A's frame). Few arguments keep the Python-to-compiled call cheap for per-call use.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from spq.kernels.jit import kernel
+
+from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, OUT_SIZE, WORK_ROWS, gjk_query
+
+POSE_OK = 0
+POSE_NOT_FINITE = 1
+POSE_BAD_BOTTOM_ROW = 2
+POSE_NOT_ROTATION = 3
+ROTATION_TOL = 1e-6  # same admissible error as spq.validation.ROTATION_TOL
+
+I_KIND_A, I_KIND_B, I_MAX_ITER, I_WARM_A, I_WARM_B = 0, 1, 2, 3, 4
+F_MARGIN_A, F_MARGIN_B, F_TOL_ABS, F_TOL_REL, F_DIR = 0, 1, 2, 3, 4
+
+
+@kernel
+def check_pose(T):
+    """POSE_OK, or the code of the first problem found in a 4x4 pose."""
+    for r in range(4):
+        for c in range(4):
+            if not math.isfinite(T[r, c]):
+                return POSE_NOT_FINITE
+    if T[3, 0] != 0.0 or T[3, 1] != 0.0 or T[3, 2] != 0.0 or T[3, 3] != 1.0:
+        return POSE_BAD_BOTTOM_ROW
+    for a in range(3):
+        for b in range(3):
+            s = T[0, a] * T[0, b] + T[1, a] * T[1, b] + T[2, a] * T[2, b]
+            if abs(s - (1.0 if a == b else 0.0)) > ROTATION_TOL:
+                return POSE_NOT_ROTATION
+    det = (
+        T[0, 0] * (T[1, 1] * T[2, 2] - T[1, 2] * T[2, 1])
+        - T[0, 1] * (T[1, 0] * T[2, 2] - T[1, 2] * T[2, 0])
+        + T[0, 2] * (T[1, 0] * T[2, 1] - T[1, 1] * T[2, 0])
+    )
+    if abs(det - 1.0) > ROTATION_TOL:
+        return POSE_NOT_ROTATION
+    return POSE_OK
+
+
+@kernel
+def relative_pose(TA, TB, R, t):
+    """R = RA^T RB and t = RA^T (tB - tA): B's pose in A's frame."""
+    for r in range(3):
+        for c in range(3):
+            R[r, c] = TA[0, r] * TB[0, c] + TA[1, r] * TB[1, c] + TA[2, r] * TB[2, c]
+        t[r] = TA[0, r] * (TB[0, 3] - TA[0, 3]) + TA[1, r] * (TB[1, 3] - TA[1, 3]) + TA[2, r] * (TB[2, 3] - TA[2, 3])
+
+
+@kernel
+def _to_world(TA, out):
+    """Witness points and normal of a gjk_query result, from A's frame to the world, in place."""
+    for base in (OUT_POINT_A, OUT_POINT_B):
+        x, y, z = out[base], out[base + 1], out[base + 2]
+        for r in range(3):
+            out[base + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z + TA[r, 3]
+    x, y, z = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
+    for r in range(3):
+        out[OUT_NORMAL + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z
+
+
+@kernel
+def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
+    """One query with world-frame results in out; warm-start state in ints/floats is updated.
+
+    Returns a POSE_* code (> 0: nothing computed) or POSE_OK."""
+    code = check_pose(TA)
+    if code != POSE_OK:
+        return code
+    code = check_pose(TB)
+    if code != POSE_OK:
+        return code + 10
+    R = np.empty((3, 3))
+    t = np.empty(3)
+    relative_pose(TA, TB, R, t)
+    work = np.empty((WORK_ROWS, 4))
+    warm = np.empty(2, dtype=np.int64)
+    warm[0] = ints[I_WARM_A]
+    warm[1] = ints[I_WARM_B]
+    d = floats[F_DIR:F_DIR + 3]
+    gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
+              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, work, out)
+    ints[I_WARM_A] = warm[0]
+    ints[I_WARM_B] = warm[1]
+    _to_world(TA, out)
+    return POSE_OK
+
+
+@kernel
+def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out):
+    """Queries for N pose pairs into out (N, OUT_SIZE). poses_a/poses_b: (N or 1, 4, 4), broadcast.
+
+    coherent: carry the warm start (features, direction) from each query to the next, as along a
+    trajectory; otherwise every query starts cold. Returns -1 if every pose is valid, else the index
+    of the first bad pose times 100 plus its POSE_* code (+10 for B); nothing is computed then.
+    """
+    n = out.shape[0]
+    na = poses_a.shape[0]
+    nb = poses_b.shape[0]
+    for q in range(n):
+        ca = check_pose(poses_a[q if na > 1 else 0])
+        if ca != POSE_OK:
+            return q * 100 + ca
+        cb = check_pose(poses_b[q if nb > 1 else 0])
+        if cb != POSE_OK:
+            return q * 100 + 10 + cb
+    R = np.empty((3, 3))
+    t = np.empty(3)
+    work = np.empty((WORK_ROWS, 4))
+    warm = np.empty(2, dtype=np.int64)
+    d = np.empty(3)
+    warm0, warm1 = ints[I_WARM_A], ints[I_WARM_B]
+    d0, d1, d2 = floats[F_DIR], floats[F_DIR + 1], floats[F_DIR + 2]
+    for q in range(n):
+        TA = poses_a[q if na > 1 else 0]
+        TB = poses_b[q if nb > 1 else 0]
+        relative_pose(TA, TB, R, t)
+        if coherent:
+            warm[0], warm[1] = warm0, warm1
+            d[0], d[1], d[2] = d0, d1, d2
+        else:
+            warm[0], warm[1] = 0, 0
+            d[0], d[1], d[2] = 0.0, 0.0, 0.0
+        row = out[q]
+        gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
+                  floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, work, row)
+        _to_world(TA, row)
+        warm0, warm1 = warm[0], warm[1]
+        d0, d1, d2 = d[0], d[1], d[2]
+    ints[I_WARM_A], ints[I_WARM_B] = warm0, warm1
+    floats[F_DIR], floats[F_DIR + 1], floats[F_DIR + 2] = d0, d1, d2
+    return -1
+
+

@@ -1,0 +1,469 @@
+"""GJK distance between two convex cores, with a certificate-based stop.
+
+The steps of the algorithm are small functions named after them: the support of the Minkowski
+difference, the closest point of a simplex to the origin (signed volumes, Montanari et al. 2017,
+on the dominant projection), the termination test, and the overlap certification.
+
+Everything runs in body A's frame: B's pose relative to A is (R, t). Working near A's origin keeps
+absolute thresholds meaningful when both bodies are far from the world origin (NOTES section 5).
+
+Stop rule: the search keeps the best lower bound, the separating-plane distance v.w/|v|, and stops
+when upper - lower <= tol_abs + tol_rel * upper, where upper = |v| is the distance of the current
+simplex point. The reported distance is upper; the true distance lies in [lower, upper].
+Overlap is declared only when a non-degenerate tetrahedron of support points holds the origin
+strictly inside; a distance within tol_abs of zero that cannot be so certified is "touching".
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from spq.kernels.jit import kernel
+
+from spq.kernels.support import support_local
+
+SEPARATED = 0
+TOUCHING = 1
+OVERLAPPING = 2
+FAILED = 3
+STATUS_NAMES = ("separated", "touching", "overlapping", "failed")
+
+DEGENERATE_AREA = 1e-24  # |n|^2 / scale^4 below which a triangle is treated as a segment set
+DEGENERATE_VOLUME = 1e-14  # |V| / scale^3 below which a tetrahedron is treated as its faces
+STALL_SLACK = 1e-9  # a stalled search still counts as converged if its gap is within this, relative
+
+# Layout of the result vector written by gjk_query (all in body A's frame).
+OUT_DISTANCE = 0
+OUT_POINT_A = 1  # 1..3
+OUT_POINT_B = 4  # 4..6
+OUT_NORMAL = 7  # 7..9, unit, from A to B
+OUT_LOWER = 10
+OUT_ITERATIONS = 11
+OUT_STATUS = 12
+OUT_SIZE = 13
+WORK_ROWS = 20  # rows of the (WORK_ROWS, 4) scratch array gjk_query takes
+
+
+# ------------------------------------------------------------------------------------------
+# closest point of a simplex to the origin
+# ------------------------------------------------------------------------------------------
+@kernel
+def _zero(lam):
+    lam[0] = 0.0
+    lam[1] = 0.0
+    lam[2] = 0.0
+    lam[3] = 0.0
+
+
+@kernel
+def closest_on_segment(W, i, j, lam):
+    """Closest point of segment W[i]W[j] to the origin: barycentric weights into lam (slots i, j).
+
+    Returns (mask of the slots used, squared distance)."""
+    _zero(lam)
+    t0 = W[j, 0] - W[i, 0]
+    t1 = W[j, 1] - W[i, 1]
+    t2 = W[j, 2] - W[i, 2]
+    tt = t0 * t0 + t1 * t1 + t2 * t2
+    pt = W[i, 0] * t0 + W[i, 1] * t1 + W[i, 2] * t2
+    if tt <= 0.0 or pt >= 0.0:
+        lam[i] = 1.0
+        return 1 << i, W[i, 0] ** 2 + W[i, 1] ** 2 + W[i, 2] ** 2
+    s = -pt / tt
+    if s >= 1.0:
+        lam[j] = 1.0
+        return 1 << j, W[j, 0] ** 2 + W[j, 1] ** 2 + W[j, 2] ** 2
+    lam[i] = 1.0 - s
+    lam[j] = s
+    x0 = W[i, 0] + s * t0
+    x1 = W[i, 1] + s * t1
+    x2 = W[i, 2] + s * t2
+    return (1 << i) | (1 << j), x0 * x0 + x1 * x1 + x2 * x2
+
+
+@kernel
+def _copy4(src, dst):
+    dst[0] = src[0]
+    dst[1] = src[1]
+    dst[2] = src[2]
+    dst[3] = src[3]
+
+
+@kernel
+def _best_edge(W, i, j, lam, scratch, mask, d2, edge_mask, ei, ej):
+    """Keep the better of the current best (mask, d2, lam) and edge (ei, ej)."""
+    m, e2 = closest_on_segment(W, ei, ej, scratch)
+    if e2 < d2:
+        _copy4(scratch, lam)
+        return m, e2
+    return mask, d2
+
+
+@kernel
+def closest_on_triangle(W, i, j, k, lam, scratch):
+    """Closest point of triangle W[i]W[j]W[k] to the origin (signed areas on the dominant plane).
+
+    Returns (mask, squared distance); weights go to lam."""
+    u0 = W[j, 0] - W[i, 0]
+    u1 = W[j, 1] - W[i, 1]
+    u2 = W[j, 2] - W[i, 2]
+    w0 = W[k, 0] - W[i, 0]
+    w1 = W[k, 1] - W[i, 1]
+    w2 = W[k, 2] - W[i, 2]
+    n0 = u1 * w2 - u2 * w1
+    n1 = u2 * w0 - u0 * w2
+    n2 = u0 * w1 - u1 * w0
+    nn = n0 * n0 + n1 * n1 + n2 * n2
+    scale2 = max(u0 * u0 + u1 * u1 + u2 * u2, w0 * w0 + w1 * w1 + w2 * w2)
+    inf = np.inf
+    if nn <= DEGENERATE_AREA * scale2 * scale2:
+        mask, d2 = 0, inf
+        mask, d2 = _best_edge(W, i, j, lam, scratch, mask, d2, 0, i, j)
+        mask, d2 = _best_edge(W, i, j, lam, scratch, mask, d2, 0, j, k)
+        mask, d2 = _best_edge(W, i, j, lam, scratch, mask, d2, 0, i, k)
+        return mask, d2
+    # projection of the origin on the plane, then 2D signed areas on the dominant axis
+    h = (W[i, 0] * n0 + W[i, 1] * n1 + W[i, 2] * n2) / nn
+    p0 = h * n0
+    p1 = h * n1
+    p2 = h * n2
+    a0, a1, a2 = abs(n0), abs(n1), abs(n2)
+    if a0 >= a1 and a0 >= a2:
+        x, y, mu = 1, 2, n0
+        px, py = p1, p2
+    elif a1 >= a2:
+        x, y, mu = 2, 0, n1
+        px, py = p2, p0
+    else:
+        x, y, mu = 0, 1, n2
+        px, py = p0, p1
+    ix_, iy = W[i, x] - px, W[i, y] - py
+    jx, jy = W[j, x] - px, W[j, y] - py
+    kx, ky = W[k, x] - px, W[k, y] - py
+    c_i = jx * ky - jy * kx  # area (p, j, k)
+    c_j = kx * iy - ky * ix_  # area (i, p, k)
+    c_k = ix_ * jy - iy * jx  # area (i, j, p)
+    if c_i * mu >= 0.0 and c_j * mu >= 0.0 and c_k * mu >= 0.0:
+        _zero(lam)
+        lam[i] = c_i / mu
+        lam[j] = c_j / mu
+        lam[k] = c_k / mu
+        return (1 << i) | (1 << j) | (1 << k), h * h * nn
+    mask, d2 = 0, inf
+    if c_i * mu < 0.0:
+        mask, d2 = _best_edge(W, i, j, lam, scratch, mask, d2, 0, j, k)
+    if c_j * mu < 0.0:
+        mask, d2 = _best_edge(W, i, j, lam, scratch, mask, d2, 0, i, k)
+    if c_k * mu < 0.0:
+        mask, d2 = _best_edge(W, i, j, lam, scratch, mask, d2, 0, i, j)
+    return mask, d2
+
+
+@kernel
+def _triple(W, a, b, c):
+    """W[a] . (W[b] x W[c])"""
+    return (
+        W[a, 0] * (W[b, 1] * W[c, 2] - W[b, 2] * W[c, 1])
+        + W[a, 1] * (W[b, 2] * W[c, 0] - W[b, 0] * W[c, 2])
+        + W[a, 2] * (W[b, 0] * W[c, 1] - W[b, 1] * W[c, 0])
+    )
+
+
+@kernel
+def tetrahedron_volumes(W):
+    """Signed volumes (x6) of the tetrahedron and of the four with one corner replaced by the origin.
+
+    Returns (V, V0, V1, V2, V3); V = V0 + V1 + V2 + V3, and Vm / V is the barycentric weight of
+    corner m for the origin."""
+    v0 = _triple(W, 1, 2, 3)
+    v1 = -_triple(W, 0, 2, 3)
+    v2 = _triple(W, 0, 1, 3)
+    v3 = -_triple(W, 0, 1, 2)
+    return v0 + v1 + v2 + v3, v0, v1, v2, v3
+
+
+@kernel
+def _simplex_scale(W, k):
+    s = 0.0
+    for i in range(k):
+        s = max(s, abs(W[i, 0]), abs(W[i, 1]), abs(W[i, 2]))
+    return s
+
+
+@kernel
+def closest_on_tetrahedron(W, lam, scratch, scratch2):
+    """Closest point of tetrahedron W[0..3] to the origin.
+
+    Returns (mask, squared distance, strictly_inside)."""
+    V, v0, v1, v2, v3 = tetrahedron_volumes(W)
+    s = _simplex_scale(W, 4)
+    degenerate = abs(V) <= DEGENERATE_VOLUME * s * s * s
+    if not degenerate and v0 * V > 0.0 and v1 * V > 0.0 and v2 * V > 0.0 and v3 * V > 0.0:
+        lam[0] = v0 / V
+        lam[1] = v1 / V
+        lam[2] = v2 / V
+        lam[3] = v3 / V
+        return 15, 0.0, True
+    mask, d2 = 0, np.inf
+    if degenerate or v0 * V <= 0.0:
+        m, e = closest_on_triangle(W, 1, 2, 3, scratch, scratch2)
+        if e < d2:
+            mask, d2 = m, e
+            _copy4(scratch, lam)
+    if degenerate or v1 * V <= 0.0:
+        m, e = closest_on_triangle(W, 0, 2, 3, scratch, scratch2)
+        if e < d2:
+            mask, d2 = m, e
+            _copy4(scratch, lam)
+    if degenerate or v2 * V <= 0.0:
+        m, e = closest_on_triangle(W, 0, 1, 3, scratch, scratch2)
+        if e < d2:
+            mask, d2 = m, e
+            _copy4(scratch, lam)
+    if degenerate or v3 * V <= 0.0:
+        m, e = closest_on_triangle(W, 0, 1, 2, scratch, scratch2)
+        if e < d2:
+            mask, d2 = m, e
+            _copy4(scratch, lam)
+    return mask, d2, False
+
+
+@kernel
+def reduce_simplex(W, PA, PB, k, lam, scratch):
+    """Replace the simplex (k points) by the smallest face holding its point closest to the origin.
+
+    Rows are compacted in place; returns (new k, strictly_inside)."""
+    s1 = scratch[0]
+    s2 = scratch[1]
+    if k == 1:
+        _zero(lam)
+        lam[0] = 1.0
+        mask, inside = 1, False
+    elif k == 2:
+        mask, _ = closest_on_segment(W, 0, 1, lam)
+        inside = False
+    elif k == 3:
+        mask, _ = closest_on_triangle(W, 0, 1, 2, lam, s1)
+        inside = False
+    else:
+        mask, _, inside = closest_on_tetrahedron(W, lam, s1, s2)
+    n = 0
+    for i in range(k):
+        if mask & (1 << i):
+            if n != i:
+                for c in range(3):
+                    W[n, c] = W[i, c]
+                    PA[n, c] = PA[i, c]
+                    PB[n, c] = PB[i, c]
+                lam[n] = lam[i]
+            n += 1
+    return n, inside
+
+
+# ------------------------------------------------------------------------------------------
+# support of the Minkowski difference A - B, in A's frame
+# ------------------------------------------------------------------------------------------
+@kernel
+def minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tmp):
+    """pa = s_A(d), pb = s_B(-d) (both in A's frame); warm[0], warm[1] updated with the features."""
+    warm[0] = support_local(kA, fA, iA, d0, d1, d2, warm[0], pa)
+    # -d in B's frame is -R^T d
+    e0 = -(R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2)
+    e1 = -(R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2)
+    e2 = -(R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2)
+    warm[1] = support_local(kB, fB, iB, e0, e1, e2, warm[1], tmp)
+    for r in range(3):
+        pb[r] = R[r, 0] * tmp[0] + R[r, 1] * tmp[1] + R[r, 2] * tmp[2] + t[r]
+
+
+@kernel
+def _push(W, PA, PB, k, pa, pb):
+    for c in range(3):
+        PA[k, c] = pa[c]
+        PB[k, c] = pb[c]
+        W[k, c] = pa[c] - pb[c]
+
+
+@kernel
+def _is_duplicate(PA, PB, k, pa, pb):
+    for i in range(k):
+        if (
+            PA[i, 0] == pa[0] and PA[i, 1] == pa[1] and PA[i, 2] == pa[2]
+            and PB[i, 0] == pb[0] and PB[i, 1] == pb[1] and PB[i, 2] == pb[2]
+        ):
+            return True
+    return False
+
+
+# ------------------------------------------------------------------------------------------
+# overlap certification when the distance reaches zero
+# ------------------------------------------------------------------------------------------
+# Unit vectors to the corners of a regular tetrahedron: its inscribed ball has radius 1/3.
+_PROBES = np.array([
+    [1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0],
+]) / math.sqrt(3.0)
+PROBE_RADIUS_IN_TOL = 4.0  # probe tetrahedron circumradius, in units of tol_abs (> 3 so it certifies)
+
+
+@kernel
+def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm):
+    """OVERLAPPING if the origin is certainly inside A - B, else TOUCHING.
+
+    The origin is inside A - B by at least s/3 - tol_abs if the four corners q of a regular
+    tetrahedron of circumradius s around it all are (distance(q, A - B) <= tol_abs): A - B is
+    convex, so it then holds the tetrahedron's inscribed ball. Each corner is one plain descent
+    with B shifted by q, since distance(q, A - B) = distance(A, B + q).
+    """
+    s = PROBE_RADIUS_IN_TOL * tol_abs
+    work = np.empty((WORK_ROWS, 4))
+    tq = np.empty(3)
+    for p in range(4):
+        for c in range(3):
+            tq[c] = t[c] + s * _PROBES[p, c]
+        zero = np.zeros(3)
+        st, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, tq, tol_abs, tol_rel, max_iter,
+                                                   zero, warm, work)
+        if st != OVERLAPPING and st != TOUCHING:
+            return TOUCHING
+    return OVERLAPPING
+
+
+# ------------------------------------------------------------------------------------------
+# the query
+# ------------------------------------------------------------------------------------------
+@kernel
+def _combine(P, lam, k, out, offset):
+    for c in range(3):
+        s = 0.0
+        for i in range(k):
+            s += lam[i] * P[i, c]
+        out[offset + c] = s
+
+
+@kernel
+def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, warm, work):
+    """The GJK descent: shrink the simplex towards the origin until the certificate closes.
+
+    Returns (status, k, v0, v1, v2, |v|^2, lower bound, iterations); the simplex (k points) and
+    its weights stay in work. TOUCHING here means |v| <= tol_abs, overlap not yet decided.
+    """
+    W = work[0:4, 0:3]
+    PA = work[4:8, 0:3]
+    PB = work[8:12, 0:3]
+    lam = work[12]
+    pa = work[13]
+    pb = work[14]
+    tmp = work[15]
+    scratch = work[16:20]
+
+    d0, d1, d2 = dir_in[0], dir_in[1], dir_in[2]
+    if d0 * d0 + d1 * d1 + d2 * d2 == 0.0:
+        d0, d1, d2 = t[0], t[1], t[2]
+        if d0 * d0 + d1 * d1 + d2 * d2 == 0.0:
+            d0 = 1.0
+    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tmp)
+    _push(W, PA, PB, 0, pa, pb)
+    k = 1
+    lam[0] = 1.0
+    v0, v1, v2 = W[0, 0], W[0, 1], W[0, 2]
+    vv = v0 * v0 + v1 * v1 + v2 * v2
+    lower = 0.0
+    status = FAILED
+    it = 0
+    zero_tol = tol_abs if tol_abs > 0.0 else 1e-15 * math.sqrt(vv)
+    while it < max_iter:
+        it += 1
+        upper = math.sqrt(vv)
+        if upper <= zero_tol:
+            return TOUCHING, k, v0, v1, v2, vv, lower, it
+        minkowski_support(kA, fA, iA, kB, fB, iB, R, t, -v0, -v1, -v2, warm, pa, pb, tmp)
+        vw = v0 * (pa[0] - pb[0]) + v1 * (pa[1] - pb[1]) + v2 * (pa[2] - pb[2])
+        lower = max(lower, vw / upper)
+        if upper - lower <= tol_abs + tol_rel * upper:
+            status = TOUCHING if upper <= tol_abs else SEPARATED
+            break
+        if _is_duplicate(PA, PB, k, pa, pb):
+            status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
+            break
+        _push(W, PA, PB, k, pa, pb)
+        k += 1
+        k, inside = reduce_simplex(W, PA, PB, k, lam, scratch)
+        if inside:
+            return OVERLAPPING, k, 0.0, 0.0, 0.0, 0.0, 0.0, it
+        n0 = n1 = n2 = 0.0
+        for i in range(k):
+            n0 += lam[i] * W[i, 0]
+            n1 += lam[i] * W[i, 1]
+            n2 += lam[i] * W[i, 2]
+        nv = n0 * n0 + n1 * n1 + n2 * n2
+        if nv >= vv:
+            # rounding stopped the descent: the bounds say whether the answer is good enough
+            v0, v1, v2, vv = n0, n1, n2, nv
+            upper = math.sqrt(vv)
+            status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
+            break
+        v0, v1, v2, vv = n0, n1, n2, nv
+    return status, k, v0, v1, v2, vv, lower, it
+
+
+@kernel
+def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, work, out):
+    """Distance between core A (+ margin mA) and core B (+ margin mB), B at (R, t) in A's frame.
+
+    dir_io: (3,) initial search direction (zero: from A's origin to B's), overwritten with the final
+    closest-point direction for the next warm start. warm: int64 (2,) support features of A, B
+    (in/out). work: (WORK_ROWS, 4) scratch. out: (OUT_SIZE,) result vector, in A's frame.
+    Returns the status code.
+    """
+    status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
+                                                   dir_io, warm, work)
+    if status == TOUCHING and tol_abs > 0.0:
+        status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm)
+    _finish(status, k, work[12], work[4:8, 0:3], work[8:12, 0:3], v0, v1, v2, vv, lower, it, mA, mB, tol_abs,
+            dir_io, out)
+    return int(out[OUT_STATUS])
+
+
+@kernel
+def _finish(status, k, lam, PA, PB, v0, v1, v2, vv, lower, it, mA, mB, tol_abs, dir_io, out):
+    """Witness points, normal, margins and the final status into out."""
+    _combine(PA, lam, k, out, OUT_POINT_A)
+    _combine(PB, lam, k, out, OUT_POINT_B)
+    dx = out[OUT_POINT_B] - out[OUT_POINT_A]
+    dy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
+    dz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
+    core = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if core > 0.0:
+        out[OUT_NORMAL] = dx / core
+        out[OUT_NORMAL + 1] = dy / core
+        out[OUT_NORMAL + 2] = dz / core
+    else:
+        out[OUT_NORMAL] = out[OUT_NORMAL + 1] = out[OUT_NORMAL + 2] = np.nan
+    dist = core - (mA + mB)
+    if status != OVERLAPPING and status != FAILED:
+        if dist < -tol_abs:
+            status = OVERLAPPING
+        elif dist <= tol_abs:
+            status = TOUCHING
+        else:
+            status = SEPARATED
+    if status == OVERLAPPING:
+        dist = 0.0
+        lower = 0.0
+        for c in range(1, 10):
+            out[c] = np.nan  # no witness points without a penetration query
+    else:
+        lower = max(lower - mA - mB, 0.0)
+        if core > 0.0:
+            for c in range(3):
+                out[OUT_POINT_A + c] += mA * out[OUT_NORMAL + c]
+                out[OUT_POINT_B + c] -= mB * out[OUT_NORMAL + c]
+        if status == FAILED and not (core > 0.0):
+            dist = np.nan
+    out[OUT_DISTANCE] = max(dist, 0.0) if dist == dist else dist
+    out[OUT_LOWER] = lower
+    out[OUT_ITERATIONS] = it
+    out[OUT_STATUS] = status
+    if vv > 0.0 and status != OVERLAPPING:
+        dir_io[0], dir_io[1], dir_io[2] = -v0, -v1, -v2

@@ -1,0 +1,157 @@
+"""Support functions of the shape cores, compiled, over the flat layout of ``kernels.kinds``.
+
+A support function takes a direction (d0, d1, d2) in the shape's local frame (any length, not
+necessarily unit) and returns the farthest core point along it. Margins (sphere and capsule radii)
+are handled by the solver, not here, so that GJK runs on the exact polyhedral/segment cores.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from spq.kernels.jit import kernel
+
+from spq.kernels.kinds import BOX, BRUTE_FORCE_MAX_VERTICES, POINT, POLYTOPE, SEGMENT
+
+
+@kernel(inline="always")
+def _vertex_dot(f, i, d0, d1, d2):
+    return f[3 * i] * d0 + f[3 * i + 1] * d1 + f[3 * i + 2] * d2
+
+
+@kernel
+def polytope_support_brute(f, n, d0, d1, d2):
+    """Index of the vertex maximising d.x, by a linear scan over n vertices."""
+    best = 0
+    best_val = _vertex_dot(f, 0, d0, d1, d2)
+    for i in range(1, n):
+        val = _vertex_dot(f, i, d0, d1, d2)
+        if val > best_val:
+            best_val = val
+            best = i
+    return best
+
+
+@kernel
+def cube_cell(d0, d1, d2, G):
+    """Index of the cube-map cell holding direction d: face (2 * axis + negative), then G x G cells."""
+    a0, a1, a2 = abs(d0), abs(d1), abs(d2)
+    if a0 >= a1 and a0 >= a2:
+        axis, m, u, v, neg = 0, a0, d1, d2, d0 < 0.0
+    elif a1 >= a2:
+        axis, m, u, v, neg = 1, a1, d2, d0, d1 < 0.0
+    else:
+        axis, m, u, v, neg = 2, a2, d0, d1, d2 < 0.0
+    if m == 0.0:
+        return 0
+    iu = int((u / m + 1.0) * 0.5 * G)
+    iv = int((v / m + 1.0) * 0.5 * G)
+    iu = min(max(iu, 0), G - 1)
+    iv = min(max(iv, 0), G - 1)
+    return ((2 * axis + (1 if neg else 0)) * G + iu) * G + iv
+
+
+def cube_cell_centres(G: int) -> np.ndarray:
+    """(6 G^2, 3) centre directions of the cube-map cells, in cube_cell's order."""
+    c = -1.0 + (np.arange(G) + 0.5) * 2.0 / G
+    out = np.empty((6, G, G, 3))
+    for axis in range(3):
+        for neg in (0, 1):
+            face = np.empty((G, G, 3))
+            face[..., axis] = -1.0 if neg else 1.0
+            face[..., (axis + 1) % 3] = c[:, None]
+            face[..., (axis + 2) % 3] = c[None, :]
+            out[2 * axis + neg] = face
+    return out.reshape(-1, 3)
+
+
+@kernel
+def polytope_support_climb(f, ix, d0, d1, d2, start):
+    """Index of the vertex maximising d.x, by steepest-ascent hill climbing over the hull graph.
+
+    The climb starts from the better of ``start`` (the warm start) and the cube-map vertex of d's
+    cell. On a convex polytope a vertex with no strictly better neighbour is a global maximiser:
+    the polytope lies in the cone its edges span at that vertex. A flat region (equal values)
+    therefore ends the climb at an optimal vertex, and because every step strictly increases d.x
+    the climb cannot loop. The step cap (n) and the brute-force fallback guard a corrupted graph.
+    """
+    n = ix[0]
+    G = ix[1]
+    cur = ix[ix[2] + cube_cell(d0, d1, d2, G)]
+    cur_val = _vertex_dot(f, cur, d0, d1, d2)
+    if 0 <= start < n and start != cur:
+        val = _vertex_dot(f, start, d0, d1, d2)
+        if val > cur_val:
+            cur, cur_val = start, val
+    nb = n + 4
+    for _ in range(n):
+        nxt = -1
+        nxt_val = cur_val
+        for k in range(ix[3 + cur], ix[4 + cur]):
+            j = ix[nb + k]
+            val = _vertex_dot(f, j, d0, d1, d2)
+            if val > nxt_val:
+                nxt_val = val
+                nxt = j
+        if nxt < 0:
+            return cur
+        cur = nxt
+        cur_val = nxt_val
+    return polytope_support_brute(f, n, d0, d1, d2)
+
+
+@kernel
+def polytope_support_index(f, ix, d0, d1, d2, start):
+    """Support vertex index: brute force below BRUTE_FORCE_MAX_VERTICES, hill climbing above."""
+    n = ix[0]
+    if n <= BRUTE_FORCE_MAX_VERTICES:
+        return polytope_support_brute(f, n, d0, d1, d2)
+    return polytope_support_climb(f, ix, d0, d1, d2, start)
+
+
+@kernel(inline="always")
+def _sign_half(h, d):
+    return h if d >= 0.0 else -h
+
+
+@kernel
+def support_local(kind, f, ix, d0, d1, d2, warm, out):
+    """Write the core support point along (d0, d1, d2) (local frame) into out[0:3].
+
+    ``warm`` is the feature index the search starts from (a vertex for polytopes, ignored
+    otherwise); the feature found is returned so the caller can warm-start the next call.
+    """
+    if kind == POLYTOPE:
+        i = polytope_support_index(f, ix, d0, d1, d2, warm)
+        out[0] = f[3 * i]
+        out[1] = f[3 * i + 1]
+        out[2] = f[3 * i + 2]
+        return i
+    if kind == BOX:
+        out[0] = _sign_half(f[0], d0)
+        out[1] = _sign_half(f[1], d1)
+        out[2] = _sign_half(f[2], d2)
+        return 0
+    if kind == SEGMENT:
+        out[0] = 0.0
+        out[1] = 0.0
+        out[2] = _sign_half(f[0], d2)
+        return 0
+    # POINT
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
+    return 0
+
+
+@kernel
+def support_many(kind, f, ix, directions):
+    """Support points (m, 3) for an (m, 3) array of local directions (cold start each)."""
+    m = directions.shape[0]
+    out = np.empty((m, 3))
+    tmp = np.empty(3)
+    for k in range(m):
+        support_local(kind, f, ix, directions[k, 0], directions[k, 1], directions[k, 2], 0, tmp)
+        out[k, 0] = tmp[0]
+        out[k, 1] = tmp[1]
+        out[k, 2] = tmp[2]
+    return out

@@ -1,0 +1,206 @@
+"""distance(), distances() and Pair: the public face of the compiled GJK.
+
+Frames and units: shapes live in their local frames; poses are 4x4 homogeneous matrices mapping
+local to world coordinates (batches N x 4 x 4); every returned point and normal is in the world
+frame, in metres. The normal is the unit vector from point_a to point_b.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from spq.kernels import batch as kb
+from spq.kernels.gjk import (
+    OUT_DISTANCE,
+    OUT_ITERATIONS,
+    OUT_LOWER,
+    OUT_NORMAL,
+    OUT_POINT_A,
+    OUT_POINT_B,
+    OUT_SIZE,
+    OUT_STATUS,
+    STATUS_NAMES,
+)
+from spq.shapes.base import Shape
+from spq.validation import as_poses
+
+DEFAULT_TOL_ABS = 1e-10  # m: stop when upper - lower bound <= TOL_ABS + TOL_REL * distance
+DEFAULT_TOL_REL = 1e-10  # m/m
+DEFAULT_MAX_ITER = 128  # GJK iterations; polytope queries here converge in about 5 to 20
+
+_STATUS_ARRAY = np.array(STATUS_NAMES)
+_POSE_PROBLEM = {
+    kb.POSE_NOT_FINITE: "contains NaN or inf",
+    kb.POSE_BAD_BOTTOM_ROW: "has a bottom row other than (0, 0, 0, 1)",
+    kb.POSE_NOT_ROTATION: f"has a rotation block that is not a rotation (tolerance {kb.ROTATION_TOL})",
+}
+
+
+class DistanceResult:
+    """Result of one query (world frame, metres).
+
+    distance: >= 0, 0 when overlapping. point_a, point_b: witness points on A and B (NaN when
+    overlapping: penetration is not computed). normal: unit vector from point_a to point_b.
+    status: 'separated' | 'touching' (within tol of contact) | 'overlapping' | 'failed'.
+    iterations: GJK iterations. lower_bound: certified lower bound on the distance; the true
+    distance lies in [lower_bound, distance].
+    """
+
+    __slots__ = ("_out",)
+
+    def __init__(self, out: np.ndarray):
+        self._out = out
+
+    distance = property(lambda self: float(self._out[OUT_DISTANCE]))
+    point_a = property(lambda self: self._out[OUT_POINT_A:OUT_POINT_A + 3].copy())
+    point_b = property(lambda self: self._out[OUT_POINT_B:OUT_POINT_B + 3].copy())
+    normal = property(lambda self: self._out[OUT_NORMAL:OUT_NORMAL + 3].copy())
+    status = property(lambda self: STATUS_NAMES[int(self._out[OUT_STATUS])])
+    iterations = property(lambda self: int(self._out[OUT_ITERATIONS]))
+    lower_bound = property(lambda self: float(self._out[OUT_LOWER]))
+
+    def __repr__(self) -> str:
+        return (f"DistanceResult(distance={self.distance:.12g}, status={self.status!r}, "
+                f"iterations={self.iterations}, lower_bound={self.lower_bound:.12g})")
+
+
+class BatchDistances:
+    """Results of N queries as arrays (world frame, metres); fields as in DistanceResult.
+
+    distance (N,), point_a (N, 3), point_b (N, 3), normal (N, 3), status (N,) str,
+    status_code (N,) int8 (index into spq.STATUS_NAMES), iterations (N,) int, lower_bound (N,).
+    """
+
+    def __init__(self, out: np.ndarray):
+        self.distance = out[:, OUT_DISTANCE].copy()
+        self.point_a = out[:, OUT_POINT_A:OUT_POINT_A + 3].copy()
+        self.point_b = out[:, OUT_POINT_B:OUT_POINT_B + 3].copy()
+        self.normal = out[:, OUT_NORMAL:OUT_NORMAL + 3].copy()
+        self.status_code = out[:, OUT_STATUS].astype(np.int8)
+        self.status = _STATUS_ARRAY[self.status_code]
+        self.iterations = out[:, OUT_ITERATIONS].astype(np.int64)
+        self.lower_bound = out[:, OUT_LOWER].copy()
+
+    def __len__(self) -> int:
+        return len(self.distance)
+
+
+def _check_tolerances(tol, rel_tol, max_iter) -> tuple[float, float, int]:
+    tol, rel_tol = float(tol), float(rel_tol)
+    for name, val in (("tol", tol), ("rel_tol", rel_tol)):
+        if not math.isfinite(val) or val < 0.0:
+            raise ValueError(f"{name} must be finite and >= 0; got {val}")
+    if tol == 0.0 and rel_tol == 0.0:
+        raise ValueError("tol and rel_tol cannot both be 0: GJK on curved shapes would never stop")
+    if int(max_iter) < 1:
+        raise ValueError(f"max_iter must be >= 1; got {max_iter}")
+    return tol, rel_tol, int(max_iter)
+
+
+def _check_shape(shape, name: str) -> None:
+    if not isinstance(shape, Shape):
+        raise ValueError(f"{name} must be an spq shape (Polyhedron, Sphere, Box, Capsule, ...); got {type(shape).__name__}")
+
+
+def _pack(A: Shape, B: Shape, tol, rel_tol, max_iter) -> tuple[np.ndarray, np.ndarray]:
+    _check_shape(A, "A")
+    _check_shape(B, "B")
+    tol, rel_tol, max_iter = _check_tolerances(tol, rel_tol, max_iter)
+    ka, kb_ = A.kernel_data(), B.kernel_data()
+    ints = np.array([ka.kind, kb_.kind, max_iter, 0, 0], dtype=np.int64)
+    floats = np.array([ka.margin, kb_.margin, tol, rel_tol, 0.0, 0.0, 0.0])
+    return ints, floats
+
+
+def _raise_pose_error(code: int, index: int | None = None) -> None:
+    which = "pose_b" if code >= 10 else "pose_a"
+    if index is not None:
+        which += "s"
+    where = f" {index}" if index is not None else ""
+    raise ValueError(f"{which}{where} {_POSE_PROBLEM[code % 10]}")
+
+
+def _as_matrix(pose) -> np.ndarray:
+    if isinstance(pose, np.ndarray) and pose.dtype == np.float64 and pose.shape == (4, 4) and pose.flags.c_contiguous:
+        return pose
+    arr = np.asarray(pose)
+    if arr.shape != (4, 4):
+        raise ValueError(f"a pose must be a 4x4 homogeneous matrix; got shape {arr.shape}")
+    return as_poses(arr)[0]
+
+
+def _as_pose_batch(poses, name: str) -> np.ndarray:
+    """(N, 4, 4) float64 C-contiguous view of poses; their validity is checked in the kernel."""
+    arr = np.asarray(poses, dtype=np.float64)
+    if arr.ndim == 2:
+        arr = arr[None]
+    if arr.ndim != 3 or arr.shape[1:] != (4, 4):
+        raise ValueError(f"{name} must have shape (4, 4) or (N, 4, 4); got {arr.shape}")
+    return np.ascontiguousarray(arr)
+
+
+class Pair:
+    """A pair of shapes queried repeatedly, keeping the warm start between calls.
+
+    The last support features and search direction of each call seed the next, so queries along a
+    smooth trajectory take few iterations. ``reset()`` forgets them.
+    """
+
+    def __init__(self, A: Shape, B: Shape, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
+                 max_iter: int = DEFAULT_MAX_ITER):
+        self.A, self.B = A, B
+        self._ints, self._floats = _pack(A, B, tol, rel_tol, max_iter)
+        ka, kb_ = A.kernel_data(), B.kernel_data()
+        self._fa, self._ia, self._fb, self._ib = ka.fdata, ka.idata, kb_.fdata, kb_.idata
+
+    def reset(self) -> None:
+        """Forget the warm start."""
+        self._ints[kb.I_WARM_A] = self._ints[kb.I_WARM_B] = 0
+        self._floats[kb.F_DIR:kb.F_DIR + 3] = 0.0
+
+    def distance(self, pose_a, pose_b) -> DistanceResult:
+        """Distance between A at pose_a and B at pose_b (4x4 world poses)."""
+        out = np.empty(OUT_SIZE)
+        code = kb.query_one(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats,
+                            _as_matrix(pose_a), _as_matrix(pose_b), out)
+        if code:
+            _raise_pose_error(code)
+        return DistanceResult(out)
+
+    def distances(self, poses_a, poses_b, coherent: bool = True) -> BatchDistances:
+        """Batched queries (see :func:`distances`), continuing this pair's warm start."""
+        pa = _as_pose_batch(poses_a, "poses_a")
+        pb = _as_pose_batch(poses_b, "poses_b")
+        n = max(len(pa), len(pb))
+        if len(pa) not in (1, n) or len(pb) not in (1, n):
+            raise ValueError(f"poses_a and poses_b must have the same length N (or 1); got {len(pa)} and {len(pb)}")
+        out = np.empty((n, OUT_SIZE))
+        code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats, pa, pb,
+                              bool(coherent), out)
+        if code >= 0:
+            _raise_pose_error(code % 100, code // 100)
+        return BatchDistances(out)
+
+
+def distance(A: Shape, pose_a, B: Shape, pose_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
+             max_iter: int = DEFAULT_MAX_ITER) -> DistanceResult:
+    """Distance between convex shape A at pose_a and B at pose_b (4x4 world poses, metres).
+
+    GJK stops when the certified gap (distance - lower_bound) is at most tol + rel_tol * distance.
+    Overlapping shapes give distance 0 and status 'overlapping'. Raises ValueError for bad poses
+    or tolerances.
+    """
+    return Pair(A, B, tol, rel_tol, max_iter).distance(pose_a, pose_b)
+
+
+def distances(A: Shape, B: Shape, poses_a, poses_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
+              max_iter: int = DEFAULT_MAX_ITER, coherent: bool = False) -> BatchDistances:
+    """Distances for N pose pairs in one compiled loop.
+
+    poses_a, poses_b: (N, 4, 4) world poses (either may be a single 4x4, broadcast). coherent=True
+    warm-starts each query from the previous one (for trajectories); False starts each cold.
+    Returns a :class:`BatchDistances` of arrays.
+    """
+    return Pair(A, B, tol, rel_tol, max_iter).distances(poses_a, poses_b, coherent=coherent)

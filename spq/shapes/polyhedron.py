@@ -1,0 +1,146 @@
+"""Polyhedral convex hull bounding volume (PCH-BV)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from spq.io.qhull import read_qhull_off
+from spq.kernels import kinds
+from spq.kernels.support import cube_cell_centres
+from spq.shapes.base import KernelData, Shape
+from spq.validation import as_points
+
+FLATNESS_TOL = 1e-9  # smallest/largest singular value of the centred cloud below which it is flat
+
+
+def _check_full_dimensional(points: np.ndarray) -> None:
+    centred = points - points.mean(axis=0)
+    sv = np.linalg.svd(centred, compute_uv=False)
+    if sv[0] == 0.0 or sv[-1] <= FLATNESS_TOL * sv[0]:
+        raise ValueError(
+            "points are flat or degenerate: a convex polyhedron needs at least 4 affinely independent "
+            f"points (singular values of the centred cloud {np.array2string(sv, precision=3)}; "
+            f"the smallest must exceed {FLATNESS_TOL:g} x the largest)"
+        )
+
+
+def _outward_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Orient every triangle counter-clockwise seen from outside (normal away from the centroid)."""
+    centre = vertices.mean(axis=0)
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    normal = np.cross(b - a, c - a)
+    flip = np.einsum("ij,ij->i", normal, a - centre) < 0
+    out = faces.copy()
+    out[flip, 1], out[flip, 2] = faces[flip, 2], faces[flip, 1]
+    return out
+
+
+def _csr_adjacency(n: int, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex adjacency of a triangle mesh as CSR (offsets (n+1,), neighbours), sorted, no repeats."""
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    edges = np.concatenate([edges, edges[:, ::-1]])
+    edges = np.unique(edges, axis=0)
+    counts = np.bincount(edges[:, 0], minlength=n)
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return offsets, np.ascontiguousarray(edges[:, 1], dtype=np.int64)
+
+
+class Polyhedron(Shape):
+    """Convex hull of a point set, in the points' own frame (metres).
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64
+        Hull vertices (points strictly inside the hull are dropped).
+    faces : (m, 3) int64
+        Triangles of the hull, counter-clockwise seen from outside.
+    adjacency_offsets, adjacency : int64 arrays
+        Vertex adjacency in CSR form: the neighbours of vertex i are
+        ``adjacency[adjacency_offsets[i]:adjacency_offsets[i + 1]]``.
+    face_normals : (m, 3) float64, face_offsets : (m,) float64
+        Outward unit normals n and offsets d of the face planes n.x = d.
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
+        self.adjacency_offsets, self.adjacency = _csr_adjacency(len(self.vertices), self.faces)
+        a, b, c = (self.vertices[self.faces[:, k]] for k in range(3))
+        normal = np.cross(b - a, c - a)
+        self.face_normals = normal / np.linalg.norm(normal, axis=1)[:, None]
+        self.face_offsets = np.einsum("ij,ij->i", self.face_normals, a)
+        self._kernel = None
+
+    # --- constructors -------------------------------------------------------------------------
+    @classmethod
+    def from_points(cls, points) -> "Polyhedron":
+        """Convex hull of ``points`` ((n, 3), metres). Needs 4 affinely independent finite points."""
+        pts = as_points(points, "points", min_count=4)
+        _check_full_dimensional(pts)
+        try:
+            hull = ConvexHull(pts)
+        except QhullError as exc:
+            raise ValueError(f"qhull could not build a hull from these points: {exc}".splitlines()[0]) from None
+        used = np.unique(hull.simplices)
+        remap = np.full(len(pts), -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        vertices = pts[used]
+        faces = _outward_faces(vertices, remap[hull.simplices])
+        return cls(vertices, faces)
+
+    @classmethod
+    def from_mesh(cls, mesh) -> "Polyhedron":
+        """Convex hull of a mesh's vertices; ``mesh`` is a path trimesh can load or a trimesh object."""
+        import trimesh
+
+        if isinstance(mesh, (str, Path)):
+            path = Path(mesh)
+            if not path.is_file():
+                raise ValueError(f"mesh file not found: {path}")
+            try:
+                loaded = trimesh.load(path, force="mesh", process=False)
+            except Exception as exc:  # trimesh raises many types for unreadable files
+                raise ValueError(f"cannot read mesh {path}: {exc}") from None
+            mesh = loaded
+        vertices = getattr(mesh, "vertices", None)
+        if vertices is None or len(vertices) == 0:
+            raise ValueError(f"mesh {mesh!r} has no vertices")
+        return cls.from_points(np.asarray(vertices))
+
+    @classmethod
+    def from_qhull_file(cls, path) -> "Polyhedron":
+        """Convex hull of the points that the facets of a qhull ``o f`` file use (NOTES section 3)."""
+        points, facets = read_qhull_off(path)
+        used = np.unique(np.concatenate(facets)) if facets else np.arange(len(points))
+        return cls.from_points(points[used])
+
+    # --- kernel view --------------------------------------------------------------------------
+    def kernel_data(self) -> KernelData:
+        if self._kernel is None:
+            n = len(self.vertices)
+            G = kinds.CUBE_MAP_CELLS
+            table = np.argmax(cube_cell_centres(G) @ self.vertices.T, axis=1)
+            table_start = 3 + (n + 1) + len(self.adjacency)
+            idata = np.concatenate([[n, G, table_start], self.adjacency_offsets, self.adjacency, table])
+            idata = idata.astype(np.int64)
+            self._kernel = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), idata)
+        return self._kernel
+
+    def bounding_radius(self) -> float:
+        return float(np.sqrt((self.vertices**2).sum(axis=1).max()))
+
+    def signed_distance_to_surface(self, points) -> np.ndarray:
+        """Signed distance (m) of local-frame points to the hull boundary: > 0 outside, < 0 inside.
+
+        Exact inside; outside it is the largest face-plane excess, a lower bound that is exact for
+        points whose nearest feature is a face (used to check witness points, which lie on it).
+        """
+        p = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        return (p @ self.face_normals.T - self.face_offsets).max(axis=1)
+
+    def __repr__(self) -> str:
+        return f"Polyhedron({len(self.vertices)} vertices, {len(self.faces)} faces)"
