@@ -109,7 +109,8 @@ def _pack(A: Shape, B: Shape, tol, rel_tol, max_iter) -> tuple[np.ndarray, np.nd
     _check_shape(B, "B")
     tol, rel_tol, max_iter = _check_tolerances(tol, rel_tol, max_iter)
     ka, kb_ = A.kernel_data(), B.kernel_data()
-    ints = np.array([ka.kind, kb_.kind, max_iter, 0, 0], dtype=np.int64)
+    ints = np.zeros(kb.INTS_SIZE, dtype=np.int64)
+    ints[[kb.I_KIND_A, kb.I_KIND_B, kb.I_MAX_ITER]] = ka.kind, kb_.kind, max_iter
     floats = np.array([ka.margin, kb_.margin, tol, rel_tol, 0.0, 0.0, 0.0])
     return ints, floats
 
@@ -157,7 +158,7 @@ class Pair:
 
     def reset(self) -> None:
         """Forget the warm start."""
-        self._ints[kb.I_WARM_A] = self._ints[kb.I_WARM_B] = 0
+        self._ints[kb.I_WARM:] = 0
         self._floats[kb.F_DIR:kb.F_DIR + 3] = 0.0
 
     def distance(self, pose_a, pose_b) -> DistanceResult:

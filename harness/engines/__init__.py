@@ -16,6 +16,7 @@ from harness.engines.base import STATUSES, BatchResult, Engine, EngineResult, Pr
 EngineFactory = Callable[[], Engine]
 
 _ENGINE_CLASSES = {  # exported class -> module, imported on first use
+    "SpqEngine": "harness.engines.spq_engine",
     "FclEngine": "harness.engines.fcl_engine",
     "CoalEngine": "harness.engines.coal_engine",
     "BulletEngine": "harness.engines.bullet_engine",
@@ -26,6 +27,12 @@ def __getattr__(name: str):
     if name in _ENGINE_CLASSES:
         return getattr(import_module(_ENGINE_CLASSES[name]), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _spq() -> Engine:
+    from harness.engines.spq_engine import SpqEngine
+
+    return SpqEngine()
 
 
 def _fcl() -> Engine:
@@ -53,6 +60,7 @@ def _bullet_margin() -> Engine:
 
 
 ENGINE_FACTORIES: dict[str, EngineFactory] = {
+    "spq": _spq,
     "fcl": _fcl,
     "coal": _coal,
     "bullet": _bullet,  # collision margin 0

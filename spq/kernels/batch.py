@@ -1,6 +1,6 @@
 """Compiled entry points around gjk_query: pose checks, frames, single and batched queries.
 
-Packing: ``ints = [kind_a, kind_b, max_iter, warm_a, warm_b]`` and
+Packing: ``ints = [kind_a, kind_b, max_iter, warm state (gjk.WARM_SIZE)]`` and
 ``floats = [margin_a, margin_b, tol_abs, tol_rel, dx, dy, dz]`` (dx, dy, dz: the warm-start search
 direction in A's frame). Few arguments keep the Python-to-compiled call cheap for per-call use.
 """
@@ -12,7 +12,7 @@ import math
 import numpy as np
 from spq.kernels.jit import kernel
 
-from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, OUT_SIZE, WORK_ROWS, gjk_query
+from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, OUT_SIZE, WARM_SIZE, WORK_ROWS, gjk_query
 
 POSE_OK = 0
 POSE_NOT_FINITE = 1
@@ -20,7 +20,8 @@ POSE_BAD_BOTTOM_ROW = 2
 POSE_NOT_ROTATION = 3
 ROTATION_TOL = 1e-6  # same admissible error as spq.validation.ROTATION_TOL
 
-I_KIND_A, I_KIND_B, I_MAX_ITER, I_WARM_A, I_WARM_B = 0, 1, 2, 3, 4
+I_KIND_A, I_KIND_B, I_MAX_ITER, I_WARM = 0, 1, 2, 3
+INTS_SIZE = I_WARM + WARM_SIZE
 F_MARGIN_A, F_MARGIN_B, F_TOL_ABS, F_TOL_REL, F_DIR = 0, 1, 2, 3, 4
 
 
@@ -84,14 +85,9 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     t = np.empty(3)
     relative_pose(TA, TB, R, t)
     work = np.empty((WORK_ROWS, 4))
-    warm = np.empty(2, dtype=np.int64)
-    warm[0] = ints[I_WARM_A]
-    warm[1] = ints[I_WARM_B]
-    d = floats[F_DIR:F_DIR + 3]
     gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
-              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, work, out)
-    ints[I_WARM_A] = warm[0]
-    ints[I_WARM_B] = warm[1]
+              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], floats[F_DIR:F_DIR + 3],
+              ints[I_WARM:I_WARM + WARM_SIZE], work, out)
     _to_world(TA, out)
     return POSE_OK
 
@@ -117,28 +113,19 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out):
     R = np.empty((3, 3))
     t = np.empty(3)
     work = np.empty((WORK_ROWS, 4))
-    warm = np.empty(2, dtype=np.int64)
-    d = np.empty(3)
-    warm0, warm1 = ints[I_WARM_A], ints[I_WARM_B]
-    d0, d1, d2 = floats[F_DIR], floats[F_DIR + 1], floats[F_DIR + 2]
+    warm = ints[I_WARM:I_WARM + WARM_SIZE]
+    d = floats[F_DIR:F_DIR + 3]
     for q in range(n):
         TA = poses_a[q if na > 1 else 0]
         TB = poses_b[q if nb > 1 else 0]
         relative_pose(TA, TB, R, t)
-        if coherent:
-            warm[0], warm[1] = warm0, warm1
-            d[0], d[1], d[2] = d0, d1, d2
-        else:
-            warm[0], warm[1] = 0, 0
-            d[0], d[1], d[2] = 0.0, 0.0, 0.0
+        if not coherent:
+            warm[:] = 0
+            d[:] = 0.0
         row = out[q]
         gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
                   floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, work, row)
         _to_world(TA, row)
-        warm0, warm1 = warm[0], warm[1]
-        d0, d1, d2 = d[0], d[1], d[2]
-    ints[I_WARM_A], ints[I_WARM_B] = warm0, warm1
-    floats[F_DIR], floats[F_DIR + 1], floats[F_DIR + 2] = d0, d1, d2
     return -1
 
 

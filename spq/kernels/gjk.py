@@ -21,6 +21,7 @@ import math
 import numpy as np
 from spq.kernels.jit import kernel
 
+from spq.kernels.kinds import POLYTOPE
 from spq.kernels.support import support_local
 
 SEPARATED = 0
@@ -42,7 +43,12 @@ OUT_LOWER = 10
 OUT_ITERATIONS = 11
 OUT_STATUS = 12
 OUT_SIZE = 13
-WORK_ROWS = 20  # rows of the (WORK_ROWS, 4) scratch array gjk_query takes
+WORK_ROWS = 22  # rows of the (WORK_ROWS, 4) scratch array gjk_query takes
+
+# Warm-start state, an int64 array: the last support features of A and B, then the final simplex
+# of the previous query as (count, 4 feature ids of A, 4 of B), re-evaluated at the new poses.
+WARM_FEATURE_A, WARM_FEATURE_B, WARM_COUNT, WARM_SIMPLEX_A, WARM_SIMPLEX_B = 0, 1, 2, 3, 7
+WARM_SIZE = 11
 
 
 # ------------------------------------------------------------------------------------------
@@ -230,10 +236,11 @@ def closest_on_tetrahedron(W, lam, scratch, scratch2):
 
 
 @kernel
-def reduce_simplex(W, PA, PB, k, lam, scratch):
+def reduce_simplex(W, PA, PB, FI, k, lam, scratch):
     """Replace the simplex (k points) by the smallest face holding its point closest to the origin.
 
-    Rows are compacted in place; returns (new k, strictly_inside)."""
+    Rows of W, PA, PB and columns of FI (support feature ids) are compacted in place; returns
+    (new k, strictly_inside)."""
     s1 = scratch[0]
     s2 = scratch[1]
     if k == 1:
@@ -256,6 +263,8 @@ def reduce_simplex(W, PA, PB, k, lam, scratch):
                     W[n, c] = W[i, c]
                     PA[n, c] = PA[i, c]
                     PB[n, c] = PB[i, c]
+                FI[0, n] = FI[0, i]
+                FI[1, n] = FI[1, i]
                 lam[n] = lam[i]
             n += 1
     return n, inside
@@ -278,11 +287,39 @@ def minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tm
 
 
 @kernel
-def _push(W, PA, PB, k, pa, pb):
+def _push(W, PA, PB, FI, k, pa, pb, warm):
     for c in range(3):
         PA[k, c] = pa[c]
         PB[k, c] = pb[c]
         W[k, c] = pa[c] - pb[c]
+    FI[0, k] = warm[WARM_FEATURE_A]
+    FI[1, k] = warm[WARM_FEATURE_B]
+
+
+@kernel
+def _rebuild_simplex(fA, fB, R, t, W, PA, PB, FI, warm):
+    """The previous query's simplex, from its polytope vertex ids, at the current poses."""
+    k = warm[WARM_COUNT]
+    for i in range(k):
+        ia = warm[WARM_SIMPLEX_A + i]
+        ib = warm[WARM_SIMPLEX_B + i]
+        for c in range(3):
+            PA[i, c] = fA[3 * ia + c]
+        for r in range(3):
+            PB[i, r] = R[r, 0] * fB[3 * ib] + R[r, 1] * fB[3 * ib + 1] + R[r, 2] * fB[3 * ib + 2] + t[r]
+        for c in range(3):
+            W[i, c] = PA[i, c] - PB[i, c]
+        FI[0, i] = ia
+        FI[1, i] = ib
+    return k
+
+
+@kernel
+def _save_simplex(FI, k, warm):
+    warm[WARM_COUNT] = k
+    for i in range(k):
+        warm[WARM_SIMPLEX_A + i] = int(FI[0, i])
+        warm[WARM_SIMPLEX_B + i] = int(FI[1, i])
 
 
 @kernel
@@ -318,12 +355,13 @@ def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, wa
     s = PROBE_RADIUS_IN_TOL * tol_abs
     work = np.empty((WORK_ROWS, 4))
     tq = np.empty(3)
+    probe_warm = warm.copy()  # the probes must not replace the query's own warm-start simplex
     for p in range(4):
         for c in range(3):
             tq[c] = t[c] + s * _PROBES[p, c]
         zero = np.zeros(3)
         st, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, tq, tol_abs, tol_rel, max_iter,
-                                                   zero, warm, work)
+                                                   zero, probe_warm, work)
         if st != OVERLAPPING and st != TOUCHING:
             return TOUCHING
     return OVERLAPPING
@@ -357,26 +395,40 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
     tmp = work[15]
     scratch = work[16:20]
 
-    d0, d1, d2 = dir_in[0], dir_in[1], dir_in[2]
-    if d0 * d0 + d1 * d1 + d2 * d2 == 0.0:
-        d0, d1, d2 = t[0], t[1], t[2]
-        if d0 * d0 + d1 * d1 + d2 * d2 == 0.0:
-            d0 = 1.0
-    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tmp)
-    _push(W, PA, PB, 0, pa, pb)
-    k = 1
-    lam[0] = 1.0
-    v0, v1, v2 = W[0, 0], W[0, 1], W[0, 2]
-    vv = v0 * v0 + v1 * v1 + v2 * v2
+    FI = work[20:22]
     lower = 0.0
     status = FAILED
     it = 0
+    if warm[WARM_COUNT] > 0 and kA == POLYTOPE and kB == POLYTOPE:
+        k = _rebuild_simplex(fA, fB, R, t, W, PA, PB, FI, warm)
+        k, inside = reduce_simplex(W, PA, PB, FI, k, lam, scratch)
+        if inside:
+            _save_simplex(FI, k, warm)
+            return OVERLAPPING, k, 0.0, 0.0, 0.0, 0.0, 0.0, it
+        v0 = v1 = v2 = 0.0
+        for i in range(k):
+            v0 += lam[i] * W[i, 0]
+            v1 += lam[i] * W[i, 1]
+            v2 += lam[i] * W[i, 2]
+    else:
+        d0, d1, d2 = dir_in[0], dir_in[1], dir_in[2]
+        if d0 * d0 + d1 * d1 + d2 * d2 == 0.0:
+            d0, d1, d2 = t[0], t[1], t[2]
+            if d0 * d0 + d1 * d1 + d2 * d2 == 0.0:
+                d0 = 1.0
+        minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tmp)
+        _push(W, PA, PB, FI, 0, pa, pb, warm)
+        k = 1
+        lam[0] = 1.0
+        v0, v1, v2 = W[0, 0], W[0, 1], W[0, 2]
+    vv = v0 * v0 + v1 * v1 + v2 * v2
     zero_tol = tol_abs if tol_abs > 0.0 else 1e-15 * math.sqrt(vv)
     while it < max_iter:
         it += 1
         upper = math.sqrt(vv)
         if upper <= zero_tol:
-            return TOUCHING, k, v0, v1, v2, vv, lower, it
+            status = TOUCHING
+            break
         minkowski_support(kA, fA, iA, kB, fB, iB, R, t, -v0, -v1, -v2, warm, pa, pb, tmp)
         vw = v0 * (pa[0] - pb[0]) + v1 * (pa[1] - pb[1]) + v2 * (pa[2] - pb[2])
         lower = max(lower, vw / upper)
@@ -386,11 +438,13 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
         if _is_duplicate(PA, PB, k, pa, pb):
             status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
             break
-        _push(W, PA, PB, k, pa, pb)
+        _push(W, PA, PB, FI, k, pa, pb, warm)
         k += 1
-        k, inside = reduce_simplex(W, PA, PB, k, lam, scratch)
+        k, inside = reduce_simplex(W, PA, PB, FI, k, lam, scratch)
         if inside:
-            return OVERLAPPING, k, 0.0, 0.0, 0.0, 0.0, 0.0, it
+            status = OVERLAPPING
+            v0 = v1 = v2 = vv = lower = 0.0
+            break
         n0 = n1 = n2 = 0.0
         for i in range(k):
             n0 += lam[i] * W[i, 0]
@@ -404,6 +458,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
             status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
             break
         v0, v1, v2, vv = n0, n1, n2, nv
+    _save_simplex(FI, k, warm)
     return status, k, v0, v1, v2, vv, lower, it
 
 
@@ -412,8 +467,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     """Distance between core A (+ margin mA) and core B (+ margin mB), B at (R, t) in A's frame.
 
     dir_io: (3,) initial search direction (zero: from A's origin to B's), overwritten with the final
-    closest-point direction for the next warm start. warm: int64 (2,) support features of A, B
-    (in/out). work: (WORK_ROWS, 4) scratch. out: (OUT_SIZE,) result vector, in A's frame.
+    closest-point direction for the next warm start. warm: int64 (WARM_SIZE,) warm-start state
+    (in/out; zeros for a cold start). work: (WORK_ROWS, 4) scratch. out: (OUT_SIZE,) result vector, in A's frame.
     Returns the status code.
     """
     status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,

@@ -1,0 +1,44 @@
+"""spq adapter: the library under test behind the same interface as the external engines.
+
+``query`` goes through ``spq.Pair`` (per call, warm start kept); ``query_many`` through the batched
+``spq.distances`` (one compiled loop, each query cold), which is what a user calls for many poses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import spq
+from harness.engines.base import BatchResult, Engine, EngineResult, PreparedPair
+
+
+class SpqPair(PreparedPair):
+    def __init__(self, a, b, tol: float, rel_tol: float):
+        self._pair = spq.Pair(a, b, tol=tol, rel_tol=rel_tol)
+        self._a, self._b, self._tol, self._rel_tol = a, b, tol, rel_tol
+
+    def _query(self, pose_a: np.ndarray, pose_b: np.ndarray) -> EngineResult:
+        r = self._pair.distance(pose_a, pose_b)
+        return EngineResult(r.distance, r.point_a, r.point_b, r.status, r.distance)
+
+    def query_many(self, poses_a, poses_b) -> BatchResult:
+        poses_a, poses_b = self._check_batches(poses_a, poses_b)
+        r = spq.distances(self._a, self._b, poses_a, poses_b, tol=self._tol, rel_tol=self._rel_tol)
+        return BatchResult(r.distance, r.point_a, r.point_b, r.status.astype("<U11"), r.distance.copy())
+
+
+class SpqEngine(Engine):
+    """spq's GJK at absolute tolerance ``tol`` (m) and relative tolerance ``rel_tol``."""
+
+    def __init__(self, tol: float = spq.DEFAULT_TOL_ABS, rel_tol: float = spq.DEFAULT_TOL_REL, name: str = "spq"):
+        self.name = name
+        self.tolerance = float(tol)
+        self.rel_tol = float(rel_tol)
+
+    def prepare(self, a, b) -> SpqPair:
+        return SpqPair(a, b, self.tolerance, self.rel_tol)
+
+    def version(self) -> str:
+        import numba
+
+        return f"spq {spq.__version__} (numba {numba.__version__})"

@@ -1,0 +1,181 @@
+"""GJK distance: closed-form cases, the independent Minkowski-hull reference, statuses, bad input."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+import spq
+from harness.reference import reference_distance
+
+
+def pose(rot=None, t=(0, 0, 0)):
+    T = np.eye(4)
+    if rot is not None:
+        T[:3, :3] = rot
+    T[:3, 3] = t
+    return T
+
+
+def random_pose(rng, spread=0.3):
+    return pose(Rotation.random(random_state=rng).as_matrix(), rng.uniform(-spread, spread, 3))
+
+
+def hull(seed, n=60, scale=(0.2, 0.15, 0.1)):
+    return spq.Polyhedron.from_points(np.random.default_rng(seed).normal(size=(n, 3)) * scale)
+
+
+# --- closed forms ---------------------------------------------------------------------------
+def test_box_box_face_gap():
+    r = spq.distance(spq.Box(0.5, 0.5, 0.5), pose(), spq.Box(0.5, 0.5, 0.5), pose(t=(1.3, 0.2, -0.1)))
+    assert r.status == "separated"
+    assert r.distance == pytest.approx(0.3, abs=1e-14)
+    np.testing.assert_allclose(r.normal, [1, 0, 0], atol=1e-14)
+    assert r.point_a[0] == pytest.approx(0.5) and r.point_b[0] == pytest.approx(0.8)
+
+
+def test_box_box_corner_to_corner():
+    r = spq.distance(spq.Box(0.5, 0.5, 0.5), pose(), spq.Box(0.5, 0.5, 0.5), pose(t=(1.2, 1.2, 1.2)))
+    assert r.distance == pytest.approx(np.sqrt(3) * 0.2, abs=1e-14)
+    np.testing.assert_allclose(r.point_a, [0.5, 0.5, 0.5], atol=1e-14)
+
+
+def test_the_fcl_progress_stop_case_gives_exactly_three():
+    # two boxes with a 3.0 gap: a progress-based stop has reported 3.16 here (NOTES section 5)
+    a = spq.Box.from_size(1, 1, 1)
+    b = spq.Box.from_size(2, 2, 2)
+    rot = Rotation.from_euler("z", 45, degrees=True).as_matrix()
+    r = spq.distance(a, pose(), b, pose(rot, (0.5 + 3.0 + np.sqrt(2), 0, 0)))
+    assert r.distance == pytest.approx(3.0, abs=1e-12)
+
+
+def test_spheres_and_capsules_use_their_radii():
+    s = spq.Sphere(0.2)
+    r = spq.distance(s, pose(t=(1, 2, 3)), spq.Sphere(0.3), pose(t=(1, 2, 4)))
+    assert r.distance == pytest.approx(0.5, abs=1e-14)
+    np.testing.assert_allclose(r.point_a, [1, 2, 3.2], atol=1e-14)
+    np.testing.assert_allclose(r.point_b, [1, 2, 3.7], atol=1e-14)
+    cap = spq.Capsule(0.1, 0.5)  # axis z, segment from -0.5 to 0.5
+    r = spq.distance(cap, pose(), spq.Sphere(0.1), pose(t=(1.0, 0, 0.3)))
+    assert r.distance == pytest.approx(0.8, abs=1e-14)
+    assert spq.distance(cap, pose(), spq.Sphere(0.1), pose(t=(0, 0, 0.75))).distance == pytest.approx(0.05, abs=1e-14)
+    r = spq.distance(cap, pose(), spq.Sphere(0.1), pose(t=(0, 0, 0.65)))
+    assert r.status == "overlapping" and r.distance == 0.0
+
+
+def test_overlap_and_touching_statuses_on_boxes():
+    a = spq.Box(0.5, 0.5, 0.5)
+    for x, status in [(0.9, "overlapping"), (0.0, "overlapping"), (1.0 - 1e-8, "overlapping"),
+                      (1.0, "touching"), (1.0 + 1e-8, "separated")]:
+        r = spq.distance(a, pose(), a, pose(t=(x, 0, 0)))
+        assert r.status == status, x
+        if status == "overlapping":
+            assert r.distance == 0.0 and np.isnan(r.point_a).all()
+
+
+# --- the independent reference --------------------------------------------------------------
+@pytest.mark.parametrize("seed", range(6))
+def test_random_hulls_match_the_minkowski_reference(seed):
+    rng = np.random.default_rng(seed)
+    a, b = hull(seed), hull(seed + 100, n=200)
+    for _ in range(40):
+        pa, pb = random_pose(rng), random_pose(rng)
+        ref = reference_distance(a, b, pa, pb)
+        r = spq.distance(a, pa, b, pb)
+        if ref.status == "separated" and ref.distance > 1e-9:
+            assert r.status == "separated"
+            assert abs(r.distance - ref.distance) <= 1e-9
+            assert r.lower_bound <= ref.distance + 1e-12
+            assert abs(np.linalg.norm(r.point_b - r.point_a) - r.distance) <= 1e-12
+            # witness points on the surfaces, in each body's own frame
+            la = np.linalg.solve(pa, np.r_[r.point_a, 1])[:3]
+            lb = np.linalg.solve(pb, np.r_[r.point_b, 1])[:3]
+            assert abs(a.signed_distance_to_surface(la)[0]) <= 1e-9
+            assert abs(b.signed_distance_to_surface(lb)[0]) <= 1e-9
+        elif ref.status == "overlapping" and ref.depth > 1e-9:
+            assert r.status == "overlapping"
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), far=st.sampled_from([0.0, 1e2, 1e4]))
+def test_distance_is_invariant_to_a_common_rigid_motion(seed, far):
+    """Moving both bodies by one rigid motion (even 1e4 m away) leaves the distance unchanged."""
+    rng = np.random.default_rng(seed)
+    a, b = hull(seed % 7), hull(seed % 5 + 50)
+    pa, pb = random_pose(rng), random_pose(rng)
+    g = pose(Rotation.random(random_state=rng).as_matrix(), rng.normal(size=3) * far)
+    r0 = spq.distance(a, pa, b, pb)
+    r1 = spq.distance(a, g @ pa, b, g @ pb)
+    assert r0.status == r1.status or min(r0.distance, r1.distance) < 1e-9
+    assert abs(r0.distance - r1.distance) <= 1e-9 + 1e-15 * far
+
+
+def test_batch_pair_and_single_agree_and_batch_is_cold_by_default():
+    rng = np.random.default_rng(7)
+    a, b = hull(1, n=300), hull(2, n=300)
+    pa = np.stack([random_pose(rng) for _ in range(300)])
+    pb = np.stack([random_pose(rng) for _ in range(300)])
+    batch = spq.distances(a, b, pa, pb)
+    pair = spq.Pair(a, b)
+    for i in range(0, 300, 7):
+        single = spq.distance(a, pa[i], b, pb[i])
+        warm = pair.distance(pa[i], pb[i])
+        assert batch.status[i] == single.status == warm.status
+        assert batch.distance[i] == single.distance  # same cold start: bit-identical
+        assert abs(warm.distance - single.distance) <= 1e-9
+
+
+def test_warm_start_along_a_smooth_path_takes_fewer_iterations():
+    a, b = hull(3, n=300), hull(4, n=300)
+    n = 400
+    angles = np.linspace(0, 1.0, n)
+    pb = np.stack([pose(Rotation.from_rotvec([0, 0, th]).as_matrix(), (0.6, 0.1 * th, 0)) for th in angles])
+    pa = np.eye(4)
+    cold = spq.distances(a, b, pa, pb, coherent=False)
+    warm = spq.distances(a, b, pa, pb, coherent=True)
+    np.testing.assert_allclose(warm.distance, cold.distance, atol=1e-9)
+    assert warm.iterations.mean() < cold.iterations.mean()
+
+
+# --- bad input ------------------------------------------------------------------------------
+@pytest.mark.parametrize("bad, what", [
+    (np.full((4, 4), np.nan), "NaN"),
+    (np.diag([1.0, 1.0, 1.0, 2.0]), "bottom row"),
+    (np.diag([2.0, 1.0, 1.0, 1.0]), "not a rotation"),
+    (np.diag([-1.0, 1.0, 1.0, 1.0]), "not a rotation"),  # a reflection
+    (np.eye(3), "4x4"),
+])
+def test_bad_poses_raise_value_error(bad, what):
+    a = spq.Box(1, 1, 1)
+    with pytest.raises(ValueError, match=what):
+        spq.distance(a, bad, a, np.eye(4))
+    with pytest.raises(ValueError, match=what):
+        spq.distance(a, np.eye(4), a, bad)
+    if bad.shape == (4, 4):
+        batch = np.stack([np.eye(4), bad])
+        with pytest.raises(ValueError, match=what):
+            spq.distances(a, a, batch, np.eye(4))
+
+
+@pytest.mark.parametrize("kwargs", [dict(tol=-1), dict(tol=np.nan), dict(tol=0, rel_tol=0), dict(max_iter=0)])
+def test_bad_tolerances_raise_value_error(kwargs):
+    with pytest.raises(ValueError):
+        spq.distance(spq.Box(1, 1, 1), np.eye(4), spq.Box(1, 1, 1), np.eye(4), **kwargs)
+
+
+def test_bad_shapes_and_primitive_sizes_raise_value_error():
+    with pytest.raises(ValueError, match="spq shape"):
+        spq.distance(np.zeros((4, 3)), np.eye(4), spq.Box(1, 1, 1), np.eye(4))
+    for make in (lambda: spq.Sphere(0), lambda: spq.Box(1, -1, 1), lambda: spq.Capsule(np.nan, 1)):
+        with pytest.raises(ValueError):
+            make()
+
+
+def test_iteration_cap_returns_a_status_not_a_wrong_number():
+    a, b = hull(5, n=300), hull(6, n=300)
+    r = spq.distance(a, np.eye(4), b, pose(t=(0.9, 0.2, 0.1)), max_iter=1)
+    assert r.status in ("failed", "separated")
+    if r.status == "separated":  # converged in one step: then it must be right
+        assert abs(r.distance - reference_distance(a, b, np.eye(4), pose(t=(0.9, 0.2, 0.1))).distance) < 1e-9
+    assert r.lower_bound <= r.distance or np.isnan(r.distance)

@@ -1,0 +1,71 @@
+"""Support functions against brute force (an independent argmax over all vertices)."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import spq
+from spq.kernels import kinds
+from spq.kernels.support import cube_cell, cube_cell_centres, support_many
+
+
+def _random_hull(seed, n=400):
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3)) * [0.3, 0.2, 0.1]
+    pts /= np.linalg.norm(pts / [0.3, 0.2, 0.1], axis=1)[:, None]  # on an ellipsoid: all on the hull
+    return spq.Polyhedron.from_points(pts)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_polytope_support_value_matches_brute_force(seed):
+    poly = _random_hull(seed)
+    assert len(poly.vertices) > kinds.BRUTE_FORCE_MAX_VERTICES  # exercises the hill climb
+    dirs = np.random.default_rng(10 + seed).normal(size=(20000, 3))
+    kd = poly.kernel_data()
+    s = support_many(kd.kind, kd.fdata, kd.idata, dirs)
+    brute = (dirs @ poly.vertices.T).max(axis=1)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, s), brute, rtol=0, atol=1e-15)
+
+
+def test_support_on_axis_and_zero_component_directions():
+    poly = _random_hull(3)
+    dirs = np.array([[1, 0, 0], [0, -1, 0], [0, 0, 1], [1, 1, 0], [0, 1e-300, -1], [-1, 0, 0]], float)
+    kd = poly.kernel_data()
+    s = support_many(kd.kind, kd.fdata, kd.idata, dirs)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, s), (dirs @ poly.vertices.T).max(axis=1), atol=1e-15)
+
+
+def test_flat_regions_are_crossed_on_a_box_hull_with_many_coplanar_points():
+    # a cube sampled with many points on its faces: large flat regions in every axis direction
+    rng = np.random.default_rng(4)
+    pts = rng.uniform(-1, 1, size=(3000, 3))
+    axis = rng.integers(0, 3, size=3000)
+    pts[np.arange(3000), axis] = np.sign(pts[np.arange(3000), axis])
+    poly = spq.Polyhedron.from_points(pts)
+    dirs = np.vstack([np.eye(3), -np.eye(3), rng.normal(size=(5000, 3))])
+    kd = poly.kernel_data()
+    s = support_many(kd.kind, kd.fdata, kd.idata, dirs)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, s), (dirs @ poly.vertices.T).max(axis=1), atol=1e-14)
+
+
+def test_cube_cell_centres_fall_in_their_own_cells():
+    G = 8
+    centres = cube_cell_centres(G)
+    cells = [cube_cell(*c, G) for c in centres]
+    assert cells == list(range(6 * G * G))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3).filter(lambda v: np.linalg.norm(v) > 1e-9))
+def test_primitive_supports_are_extreme(d):
+    d = np.array(d)
+    box = spq.Box(0.1, 0.2, 0.3)
+    kd = box.kernel_data()
+    s = support_many(kd.kind, kd.fdata, kd.idata, d[None])[0]
+    corners = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.2, 0.2) for z in (-0.3, 0.3)])
+    assert d @ s == pytest.approx((corners @ d).max(), abs=1e-12)
+    cap = spq.Capsule(0.05, 0.4)
+    kc = cap.kernel_data()
+    sc = support_many(kc.kind, kc.fdata, kc.idata, d[None])[0]
+    assert d @ sc == pytest.approx(max(0.4 * d[2], -0.4 * d[2]), abs=1e-12)
