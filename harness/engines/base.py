@@ -197,6 +197,15 @@ class PreparedPair(ABC):
                 results.append(failed_result(f"{type(exc).__name__}: {exc}"))
         return BatchResult.from_results(results)
 
+    def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        """Distances (N,) from the leanest per-query Python loop a user of this engine would write.
+
+        For throughput measurement: no result objects, no per-query checks. ``poses_a``/``poses_b``
+        are validated (N, 4, 4) float64 arrays. Engines override this with their raw calls.
+        """
+        query = self._query
+        return np.array([query(pa, pb).distance for pa, pb in zip(poses_a, poses_b)])
+
     @staticmethod
     def _check_batches(poses_a, poses_b) -> tuple[np.ndarray, np.ndarray]:
         poses_a = check_pose_batch(poses_a, "poses_a")

@@ -92,6 +92,18 @@ class BulletPair(PreparedPair):
             return result_from_raw(best[_CONTACT_DISTANCE], best[_POSITION_ON_A], best[_POSITION_ON_B])
         return result_from_raw(best[_CONTACT_DISTANCE], best[_POSITION_ON_B], best[_POSITION_ON_A])
 
+    def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        quats_a = Rotation.from_matrix(poses_a[:, :3, :3]).as_quat().tolist()
+        quats_b = Rotation.from_matrix(poses_b[:, :3, :3]).as_quat().tolist()
+        client, body_a, body_b, reach = self._client, self._body_a, self._body_b, self._max_distance
+        out = np.empty(len(poses_a))
+        for i, (ta, qa, tb, qb) in enumerate(zip(poses_a[:, :3, 3].tolist(), quats_a, poses_b[:, :3, 3].tolist(), quats_b)):
+            p.resetBasePositionAndOrientation(body_a, ta, qa, physicsClientId=client)
+            p.resetBasePositionAndOrientation(body_b, tb, qb, physicsClientId=client)
+            contacts = p.getClosestPoints(body_a, body_b, reach, physicsClientId=client)
+            out[i] = min(c[_CONTACT_DISTANCE] for c in contacts) if contacts else np.nan
+        return out
+
     def query_many(self, poses_a, poses_b) -> BatchResult:
         """As :meth:`PreparedPair.query_many`, converting all rotations to quaternions in one scipy call."""
         poses_a, poses_b = self._check_batches(poses_a, poses_b)

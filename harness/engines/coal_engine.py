@@ -52,6 +52,18 @@ class CoalPair(PreparedPair):
         raw = self._compute(tf_a, tf_b, self._request, result)
         return result_from_raw(raw, result.getNearestPoint1(), result.getNearestPoint2())
 
+    def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        tf_a, tf_b, result, compute, request = self._tf_a, self._tf_b, self._result, self._compute, self._request
+        out = np.empty(len(poses_a))
+        for i, (pa, pb) in enumerate(zip(poses_a, poses_b)):
+            tf_a.setRotation(pa[:3, :3])
+            tf_a.setTranslation(pa[:3, 3])
+            tf_b.setRotation(pb[:3, :3])
+            tf_b.setTranslation(pb[:3, 3])
+            result.clear()
+            out[i] = compute(tf_a, tf_b, request, result)
+        return out
+
 
 class CoalEngine(Engine):
     """coal with signed distance, GJK tolerance ``tolerance`` (m) and the default convergence

@@ -44,6 +44,16 @@ class FclPair(PreparedPair):
         point_a, point_b = result.nearest_points
         return result_from_raw(raw, point_a, point_b)
 
+    def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        obj_a, obj_b, request, result = self._obj_a, self._obj_b, self._request, self._result
+        out = np.empty(len(poses_a))
+        for i, (pa, pb) in enumerate(zip(poses_a, poses_b)):
+            obj_a.setTransform(fcl.Transform(pa[:3, :3], pa[:3, 3]))
+            obj_b.setTransform(fcl.Transform(pb[:3, :3], pb[:3, 3]))
+            result.min_distance = _UNSET_DISTANCE
+            out[i] = fcl.distance(obj_a, obj_b, request, result)
+        return out
+
 
 class FclEngine(Engine):
     """python-fcl with signed distance and nearest points enabled (no tolerance exposed)."""

@@ -21,6 +21,14 @@ class SpqPair(PreparedPair):
         r = self._pair.distance(pose_a, pose_b)
         return EngineResult(r.distance, r.point_a, r.point_b, r.status, r.distance)
 
+    def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        query = self._pair.distance
+        return np.array([query(pa, pb).distance for pa, pb in zip(poses_a, poses_b)])
+
+    def distance_batch(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        """Distances (N,) from one batched compiled call (cold starts)."""
+        return spq.distances(self._a, self._b, poses_a, poses_b, tol=self._tol, rel_tol=self._rel_tol).distance
+
     def query_many(self, poses_a, poses_b) -> BatchResult:
         poses_a, poses_b = self._check_batches(poses_a, poses_b)
         r = spq.distances(self._a, self._b, poses_a, poses_b, tol=self._tol, rel_tol=self._rel_tol)

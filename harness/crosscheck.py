@@ -1,0 +1,154 @@
+"""Cross-check: every engine on the same distance-controlled poses, scored against the exact reference.
+
+Output is one tidy table (a row per engine and query) and a summary per engine and bucket. Errors
+are taken against :class:`harness.reference.MinkowskiReference`, which shares no code with spq's GJK.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from harness.engines import available_engines
+from harness.poses import BUCKETS, PoseSuite, bucket_suite
+
+AMBIGUOUS_BAND = 1e-9  # m: |reference signed distance| below this counts as contact, either status is right
+
+
+@dataclass
+class CrosscheckConfig:
+    objects: list[str]
+    per_bucket: int  # poses per bucket, summed over all object pairs
+    seed: int
+    engines: list[str] | None = None  # None: every registered engine that imports
+    buckets: list[str] | None = None  # None: all of harness.poses.BUCKETS
+
+
+def object_pairs(names: list[str]) -> list[tuple[str, str]]:
+    """Each object paired with the next (cyclically): every object appears on both sides."""
+    if len(names) == 1:
+        return [(names[0], names[0])]
+    return [(names[i], names[(i + 1) % len(names)]) for i in range(len(names))]
+
+
+def _split(total: int, parts: int) -> list[int]:
+    base, extra = divmod(total, parts)
+    return [base + (1 if i < extra else 0) for i in range(parts)]
+
+
+def _surface_offset(poly, poses: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Signed distance (m) of world points to the hull boundary, each in its own pose's frame."""
+    rot = poses[:, :3, :3]
+    local = np.einsum("nji,nj->ni", rot, points - poses[:, :3, 3])
+    return np.abs(poly.signed_distance_to_surface(local))
+
+
+def status_verdict(ref_signed: np.ndarray, status: np.ndarray) -> np.ndarray:
+    """'ok', 'false_overlap' (separated by > band, reported overlapping), 'missed_overlap' (overlapping
+    by > band, reported separated or touching) or 'failed', per query."""
+    verdict = np.full(len(status), "ok", dtype=object)
+    verdict[(ref_signed > AMBIGUOUS_BAND) & (status == "overlapping")] = "false_overlap"
+    verdict[(ref_signed < -AMBIGUOUS_BAND) & np.isin(status, ["separated", "touching"])] = "missed_overlap"
+    verdict[status == "failed"] = "failed"
+    return verdict
+
+
+def score(suite: PoseSuite, engine_name: str, result, a, b) -> pd.DataFrame:
+    """Per-query rows for one engine's answers on one suite."""
+    dist = np.asarray(result.distance, dtype=np.float64)
+    sep = suite.ref_signed > AMBIGUOUS_BAND
+    err = dist - suite.ref_distance
+    gap = np.linalg.norm(result.point_b - result.point_a, axis=1)
+    off_a = np.full(len(dist), np.nan)
+    off_b = np.full(len(dist), np.nan)
+    ok = np.isfinite(result.point_a).all(axis=1) & np.isfinite(result.point_b).all(axis=1)
+    if ok.any():
+        off_a[ok] = _surface_offset(a, suite.pose_a[ok], result.point_a[ok])
+        off_b[ok] = _surface_offset(b, suite.pose_b[ok], result.point_b[ok])
+    return pd.DataFrame({
+        "pair": suite.pair_name,
+        "engine": engine_name,
+        "bucket": suite.bucket,
+        "target": suite.target,
+        "ref_distance": suite.ref_distance,
+        "ref_signed": suite.ref_signed,
+        "ref_status": suite.ref_status,
+        "distance": dist,
+        "status": np.asarray(result.status),
+        "error": err,
+        "abs_error": np.abs(err),
+        "rel_error": np.where(sep, np.abs(err) / np.maximum(suite.ref_distance, 1e-300), np.nan),
+        "witness_gap_error": np.where(sep & ok, np.abs(gap - dist), np.nan),
+        "witness_off_surface": np.where(sep & ok, np.maximum(off_a, off_b), np.nan),
+        "verdict": status_verdict(suite.ref_signed, np.asarray(result.status)),
+    })
+
+
+def run(config: CrosscheckConfig, load_object, progress: bool = True) -> pd.DataFrame:
+    """Run every engine on every pair's bucket suite; returns the tidy table."""
+    pairs = object_pairs(config.objects)
+    counts = _split(config.per_bucket, len(pairs))
+    buckets = {k: BUCKETS[k] for k in (config.buckets or BUCKETS)}
+    engines = available_engines(config.engines)
+    frames = []
+    try:
+        bar = tqdm(total=len(pairs), desc="crosscheck", unit="pair", disable=not progress)
+        for k, ((na, nb), n) in enumerate(zip(pairs, counts)):
+            if n == 0:
+                continue
+            a, b = load_object(na), load_object(nb)
+            bar.set_postfix_str(f"{na} / {nb}: poses")
+            suite = bucket_suite(a, b, n, seed=config.seed + k, buckets=buckets)
+            suite.pair_name = f"{na}|{nb}"
+            for name, engine in engines.items():
+                bar.set_postfix_str(f"{na} / {nb}: {name}")
+                prepared = engine.prepare(a, b)
+                try:
+                    result = prepared.query_many(suite.pose_a, suite.pose_b)
+                finally:
+                    prepared.close()
+                frames.append(score(suite, name, result, a, b))
+            bar.update(1)
+        bar.close()
+    finally:
+        for engine in engines.values():
+            engine.close()
+    return pd.concat(frames, ignore_index=True)
+
+
+_AGGREGATES = dict(
+    n=("distance", "size"),
+    max_abs_error=("abs_error", "max"),
+    median_abs_error=("abs_error", "median"),
+    max_rel_error=("rel_error", "max"),
+    median_rel_error=("rel_error", "median"),
+    mean_signed_error=("error", "mean"),
+    max_witness_gap_error=("witness_gap_error", "max"),
+    max_witness_off_surface=("witness_off_surface", "max"),
+    false_overlaps=("verdict", lambda v: int((v == "false_overlap").sum())),
+    missed_overlaps=("verdict", lambda v: int((v == "missed_overlap").sum())),
+    failures=("verdict", lambda v: int((v == "failed").sum())),
+)
+
+
+def summarize(table: pd.DataFrame, by=("engine", "bucket")) -> pd.DataFrame:
+    """Per group (default engine and bucket): counts, max/median absolute error (distance minus the
+    reference distance, 0 when overlapping), relative error (separated poses), mean signed error
+    (bias), witness checks, status disagreements and failures."""
+    out = table.groupby(list(by), sort=False).agg(**_AGGREGATES).reset_index()
+    if "bucket" in by:
+        order = {b: i for i, b in enumerate(BUCKETS)}
+        out["_o"] = out["bucket"].map(order)
+        out = out.sort_values(["engine", "_o"], kind="stable").drop(columns="_o").reset_index(drop=True)
+    return out
+
+
+def worst_cases(table: pd.DataFrame, k: int = 5) -> pd.DataFrame:
+    """The k largest absolute errors per engine."""
+    sep = table.dropna(subset=["abs_error"])
+    idx = sep.groupby("engine", sort=False)["abs_error"].nlargest(k).index.get_level_values(-1)
+    cols = ["engine", "pair", "bucket", "ref_distance", "distance", "abs_error", "rel_error", "status"]
+    return sep.loc[idx, cols].reset_index(drop=True)

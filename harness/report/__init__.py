@@ -1,0 +1,1 @@
+"""Rendering of results: tables (CSV + Markdown) and run metadata."""
