@@ -111,7 +111,8 @@ def _pack(A: Shape, B: Shape, tol, rel_tol, max_iter) -> tuple[np.ndarray, np.nd
     ka, kb_ = A.kernel_data(), B.kernel_data()
     ints = np.zeros(kb.INTS_SIZE, dtype=np.int64)
     ints[[kb.I_KIND_A, kb.I_KIND_B, kb.I_MAX_ITER]] = ka.kind, kb_.kind, max_iter
-    floats = np.array([ka.margin, kb_.margin, tol, rel_tol, 0.0, 0.0, 0.0])
+    floats = np.zeros(kb.FLOATS_SIZE)
+    floats[[kb.F_MARGIN_A, kb.F_MARGIN_B, kb.F_TOL_ABS, kb.F_TOL_REL]] = ka.margin, kb_.margin, tol, rel_tol
     return ints, floats
 
 
@@ -123,8 +124,13 @@ def _raise_pose_error(code: int, index: int | None = None) -> None:
     raise ValueError(f"{which}{where} {_POSE_PROBLEM[code % 10]}")
 
 
+_F64 = np.dtype(np.float64)
+_C44_STRIDES = (32, 8)
+
+
 def _as_matrix(pose) -> np.ndarray:
-    if isinstance(pose, np.ndarray) and pose.dtype == np.float64 and pose.shape == (4, 4) and pose.flags.c_contiguous:
+    """A 4x4 C-contiguous float64 pose (validity is checked in the kernel); cheap when it already is."""
+    if type(pose) is np.ndarray and pose.shape == (4, 4) and pose.dtype is _F64 and pose.strides == _C44_STRIDES:
         return pose
     arr = np.asarray(pose)
     if arr.shape != (4, 4):
@@ -159,7 +165,7 @@ class Pair:
     def reset(self) -> None:
         """Forget the warm start."""
         self._ints[kb.I_WARM:] = 0
-        self._floats[kb.F_DIR:kb.F_DIR + 3] = 0.0
+        self._floats[kb.F_DIR:] = 0.0
 
     def distance(self, pose_a, pose_b) -> DistanceResult:
         """Distance between A at pose_a and B at pose_b (4x4 world poses)."""

@@ -1,8 +1,8 @@
 """Compiled entry points around gjk_query: pose checks, frames, single and batched queries.
 
 Packing: ``ints = [kind_a, kind_b, max_iter, warm state (gjk.WARM_SIZE)]`` and
-``floats = [margin_a, margin_b, tol_abs, tol_rel, dx, dy, dz]`` (dx, dy, dz: the warm-start search
-direction in A's frame). Few arguments keep the Python-to-compiled call cheap for per-call use.
+``floats = [margin_a, margin_b, tol_abs, tol_rel, dx, dy, dz, R (9), t (3)]`` (dx, dy, dz: the
+warm-start search direction in A's frame; R, t: B's pose in A's frame at the previous query). Few arguments keep the Python-to-compiled call cheap for per-call use.
 """
 
 from __future__ import annotations
@@ -12,7 +12,15 @@ import math
 import numpy as np
 from spq.kernels.jit import kernel
 
-from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, OUT_SIZE, WARM_SIZE, WORK_ROWS, gjk_query
+from spq.kernels.gjk import (
+    OUT_NORMAL,
+    OUT_POINT_A,
+    OUT_POINT_B,
+    WARM_COUNT,
+    WARM_SIZE,
+    WORK_ROWS,
+    gjk_query,
+)
 
 POSE_OK = 0
 POSE_NOT_FINITE = 1
@@ -22,7 +30,37 @@ ROTATION_TOL = 1e-6  # same admissible error as spq.validation.ROTATION_TOL
 
 I_KIND_A, I_KIND_B, I_MAX_ITER, I_WARM = 0, 1, 2, 3
 INTS_SIZE = I_WARM + WARM_SIZE
-F_MARGIN_A, F_MARGIN_B, F_TOL_ABS, F_TOL_REL, F_DIR = 0, 1, 2, 3, 4
+F_MARGIN_A, F_MARGIN_B, F_TOL_ABS, F_TOL_REL, F_DIR, F_PREV_R, F_PREV_T = 0, 1, 2, 3, 4, 7, 16
+FLOATS_SIZE = 19
+COHERENT_ROTATION = 0.2  # max |R - R_prev| entry for the previous simplex to be re-used
+COHERENT_TRANSLATION = 0.2  # max |t - t_prev| / |t_prev| for the same
+
+
+@kernel
+def keep_simplex_if_coherent(R, t, floats, warm):
+    """Drop the warm-start simplex and direction unless B moved little relative to A since the last query.
+
+    Along a trajectory the previous simplex, re-evaluated, is nearly optimal; after a jump it is a
+    poor start that costs more iterations than a cold one. The pose is then remembered."""
+    near = True
+    for r in range(3):
+        for c in range(3):
+            if abs(R[r, c] - floats[F_PREV_R + 3 * r + c]) > COHERENT_ROTATION:
+                near = False
+    dt = 0.0
+    tt = 0.0
+    for r in range(3):
+        dt += (t[r] - floats[F_PREV_T + r]) ** 2
+        tt += floats[F_PREV_T + r] ** 2
+    if dt > COHERENT_TRANSLATION * COHERENT_TRANSLATION * tt:
+        near = False
+    if not near:
+        warm[WARM_COUNT] = 0
+        floats[F_DIR] = floats[F_DIR + 1] = floats[F_DIR + 2] = 0.0
+    for r in range(3):
+        for c in range(3):
+            floats[F_PREV_R + 3 * r + c] = R[r, c]
+        floats[F_PREV_T + r] = t[r]
 
 
 @kernel
@@ -85,6 +123,7 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     t = np.empty(3)
     relative_pose(TA, TB, R, t)
     work = np.empty((WORK_ROWS, 4))
+    keep_simplex_if_coherent(R, t, floats, ints[I_WARM:I_WARM + WARM_SIZE])
     gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
               floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], floats[F_DIR:F_DIR + 3],
               ints[I_WARM:I_WARM + WARM_SIZE], work, out)
@@ -119,7 +158,9 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out):
         TA = poses_a[q if na > 1 else 0]
         TB = poses_b[q if nb > 1 else 0]
         relative_pose(TA, TB, R, t)
-        if not coherent:
+        if coherent:
+            keep_simplex_if_coherent(R, t, floats, warm)
+        else:
             warm[:] = 0
             d[:] = 0.0
         row = out[q]

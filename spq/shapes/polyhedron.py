@@ -27,17 +27,6 @@ def _check_full_dimensional(points: np.ndarray) -> None:
         )
 
 
-def _outward_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Orient every triangle counter-clockwise seen from outside (normal away from the centroid)."""
-    centre = vertices.mean(axis=0)
-    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
-    normal = np.cross(b - a, c - a)
-    flip = np.einsum("ij,ij->i", normal, a - centre) < 0
-    out = faces.copy()
-    out[flip, 1], out[flip, 2] = faces[flip, 2], faces[flip, 1]
-    return out
-
-
 def _csr_adjacency(n: int, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Vertex adjacency of a triangle mesh as CSR (offsets (n+1,), neighbours), sorted, no repeats."""
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
@@ -65,14 +54,22 @@ class Polyhedron(Shape):
         Outward unit normals n and offsets d of the face planes n.x = d.
     """
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, planes: np.ndarray | None = None):
+        """From hull vertices, outward triangles and optionally their planes ((m, 4): n, -d with
+        n.x + (-d) = 0, as qhull gives them); without planes they come from cross products."""
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self.adjacency_offsets, self.adjacency = _csr_adjacency(len(self.vertices), self.faces)
-        a, b, c = (self.vertices[self.faces[:, k]] for k in range(3))
-        normal = np.cross(b - a, c - a)
-        self.face_normals = normal / np.linalg.norm(normal, axis=1)[:, None]
-        self.face_offsets = np.einsum("ij,ij->i", self.face_normals, a)
+        if planes is None:
+            a, b, c = (self.vertices[self.faces[:, k]] for k in range(3))
+            normal = np.cross(b - a, c - a)
+            self.face_normals = normal / np.linalg.norm(normal, axis=1)[:, None]
+            self.face_offsets = np.einsum("ij,ij->i", self.face_normals, a)
+        else:
+            # qhull's facet planes are fitted to all of a facet's vertices: accurate even for the
+            # sliver triangles its triangulation makes, where a cross product is not
+            self.face_normals = np.ascontiguousarray(planes[:, :3])
+            self.face_offsets = np.ascontiguousarray(-planes[:, 3])
         self._kernel = None
 
     # --- constructors -------------------------------------------------------------------------
@@ -89,8 +86,12 @@ class Polyhedron(Shape):
         remap = np.full(len(pts), -1, dtype=np.int64)
         remap[used] = np.arange(len(used))
         vertices = pts[used]
-        faces = _outward_faces(vertices, remap[hull.simplices])
-        return cls(vertices, faces)
+        faces = remap[hull.simplices]
+        # qhull's equations are outward; orient each triangle to agree with its facet's normal
+        a, b, c = (vertices[faces[:, k]] for k in range(3))
+        flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), hull.equations[:, :3]) < 0
+        faces[flip, 1], faces[flip, 2] = faces[flip, 2], faces[flip, 1].copy()
+        return cls(vertices, faces, hull.equations)
 
     @classmethod
     def from_mesh(cls, mesh) -> "Polyhedron":

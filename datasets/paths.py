@@ -1,0 +1,29 @@
+"""Where data lives: the shared reference datasets and pybullet's bundled models."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+ENV_SHARED = "SPQ_SHARED_DATASETS"
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def shared_datasets_dir() -> Path | None:
+    """Directory of the shared reference data, or None if it is missing.
+
+    ``$SPQ_SHARED_DATASETS`` if set (it must then be an existing directory, else None), otherwise
+    ``<repo root>/../shared/datasets`` (the repository root is the parent of this package).
+    """
+    override = os.environ.get(ENV_SHARED)
+    path = Path(override).expanduser() if override else REPO_ROOT.parent / "shared" / "datasets"
+    return path.resolve() if path.is_dir() else None
+
+
+def pybullet_data_dir() -> Path:
+    """Directory of the models shipped with pybullet (``pybullet_data.getDataPath()``)."""
+    try:
+        import pybullet_data
+    except ImportError as exc:  # pragma: no cover - pybullet is a dependency
+        raise ImportError(f"pybullet_data is needed for the robot-link meshes: {exc}") from None
+    return Path(pybullet_data.getDataPath())
