@@ -95,23 +95,22 @@ def run(config: CrosscheckConfig, load_object, progress: bool = True) -> pd.Data
     engines = available_engines(config.engines)
     frames = []
     try:
-        bar = tqdm(total=len(pairs), desc="crosscheck", unit="pair", disable=not progress)
+        total = sum(counts) * len(buckets)
+        bar = tqdm(total=total, desc="crosscheck poses", unit="pose", disable=not progress)
         for k, ((na, nb), n) in enumerate(zip(pairs, counts)):
             if n == 0:
                 continue
             a, b = load_object(na), load_object(nb)
-            bar.set_postfix_str(f"{na} / {nb}: poses")
-            suite = bucket_suite(a, b, n, seed=config.seed + k, buckets=buckets)
+            bar.set_postfix_str(f"{na} / {nb}")
+            suite = bucket_suite(a, b, n, seed=config.seed + k, buckets=buckets, progress=bar)
             suite.pair_name = f"{na}|{nb}"
             for name, engine in engines.items():
-                bar.set_postfix_str(f"{na} / {nb}: {name}")
                 prepared = engine.prepare(a, b)
                 try:
                     result = prepared.query_many(suite.pose_a, suite.pose_b)
                 finally:
                     prepared.close()
                 frames.append(score(suite, name, result, a, b))
-            bar.update(1)
         bar.close()
     finally:
         for engine in engines.values():

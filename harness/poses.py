@@ -229,7 +229,8 @@ def bucket_suite(
     seed : int, seed of ``np.random.default_rng``; equal arguments give identical suites.
     buckets : None (all of ``BUCKETS``), a list of names from ``BUCKETS``, or a dict name -> target
         in units of L.
-    progress : show a tqdm progress bar.
+    progress : True for a tqdm progress bar of its own, or an existing bar (anything with
+        ``update(n)``) to advance by one per sample, e.g. one bar over several suites.
     pair_name : label stored in the suite; defaults to the bodies' ``name`` attributes (set by
         ``datasets.load_object``) or their reprs.
 
@@ -269,8 +270,9 @@ def bucket_suite(
         "ref_normal": np.empty((n, 3)),
         "ref_status": np.empty(n, dtype=object),
     }
-    bar = None
-    if progress and n:
+    own_bar = not hasattr(progress, "update")
+    bar = None if own_bar else progress
+    if own_bar and progress and n:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=n, desc=f"pose suite {pair_name}", unit="pose")
@@ -312,7 +314,7 @@ def bucket_suite(
                 if bar is not None:
                     bar.update(1)
     finally:
-        if bar is not None:
+        if bar is not None and own_bar:
             bar.close()
     out["bucket"] = out["bucket"].astype(str) if n else np.empty(0, dtype="<U1")
     out["ref_status"] = out["ref_status"].astype(str) if n else np.empty(0, dtype="<U1")
