@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from spq.shapes.polyhedron import Polyhedron
+from spq.shapes.polyhedron import Polyhedron, convex_hull
 from spq.validation import as_pose
 
 TOUCH_TOL = 1e-12  # m: |signed distance| at or below which the status is 'touching'
@@ -113,19 +113,11 @@ def _hull_caps(poly: Polyhedron) -> _Caps:
     cached = _CAPS_CACHE.get(poly)
     if cached is not None and cached[0] is poly.vertices:
         return cached[1]
-    pts = np.asarray(poly.vertices, dtype=np.float64)
-    try:
-        hull = ConvexHull(pts)
-    except QhullError as exc:
-        raise ValueError(f"qhull could not build the hull of {poly!r}: {exc}".splitlines()[0]) from None
-    used = np.sort(hull.vertices)
-    remap = np.full(len(pts), -1, dtype=np.int64)
-    remap[used] = np.arange(len(used))
-    tris = remap[hull.simplices]
+    verts, tris, planes = convex_hull(np.asarray(poly.vertices, dtype=np.float64))
+    verts = verts.copy()
     simp = tris.ravel()
-    normals = np.repeat(hull.equations[:, :3], 3, axis=0)  # one row per (facet, corner)
-    verts = pts[used].copy()
-    k = len(used)
+    normals = np.repeat(planes[:, :3], 3, axis=0)  # one row per (facet, corner)
+    k = len(verts)
     # stage 1: one spherical cap around each normal cone
     axes = np.zeros((k, 3))
     np.add.at(axes, simp, normals)

@@ -197,6 +197,9 @@ def _simplex_scale(W, k):
     return s
 
 
+_TET_FACES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])  # the face opposite each corner
+
+
 @kernel
 def closest_on_tetrahedron(W, lam, scratch, scratch2):
     """Closest point of tetrahedron W[0..3] to the origin.
@@ -211,27 +214,15 @@ def closest_on_tetrahedron(W, lam, scratch, scratch2):
         lam[2] = v2 / V
         lam[3] = v3 / V
         return 15, 0.0, True
+    vols = (v0, v1, v2, v3)
     mask, d2 = 0, np.inf
-    if degenerate or v0 * V <= 0.0:
-        m, e = closest_on_triangle(W, 1, 2, 3, scratch, scratch2)
-        if e < d2:
-            mask, d2 = m, e
-            _copy4(scratch, lam)
-    if degenerate or v1 * V <= 0.0:
-        m, e = closest_on_triangle(W, 0, 2, 3, scratch, scratch2)
-        if e < d2:
-            mask, d2 = m, e
-            _copy4(scratch, lam)
-    if degenerate or v2 * V <= 0.0:
-        m, e = closest_on_triangle(W, 0, 1, 3, scratch, scratch2)
-        if e < d2:
-            mask, d2 = m, e
-            _copy4(scratch, lam)
-    if degenerate or v3 * V <= 0.0:
-        m, e = closest_on_triangle(W, 0, 1, 2, scratch, scratch2)
-        if e < d2:
-            mask, d2 = m, e
-            _copy4(scratch, lam)
+    for m in range(4):  # the face opposite corner m, if the origin is on its far side
+        if degenerate or vols[m] * V <= 0.0:
+            f = _TET_FACES[m]
+            fm, e = closest_on_triangle(W, f[0], f[1], f[2], scratch, scratch2)
+            if e < d2:
+                mask, d2 = fm, e
+                _copy4(scratch, lam)
     return mask, d2, False
 
 

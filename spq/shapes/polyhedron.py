@@ -27,6 +27,19 @@ def _check_full_dimensional(points: np.ndarray) -> None:
         )
 
 
+def convex_hull(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """qhull's convex hull of (n, 3) points: (vertices (k, 3), triangles (m, 3) indexing them,
+    planes (m, 4) as n.x + offset = 0 with outward unit n). Raises ValueError if qhull fails."""
+    try:
+        hull = ConvexHull(points)
+    except QhullError as exc:
+        raise ValueError(f"qhull could not build a hull from these points: {exc}".splitlines()[0]) from None
+    used = np.unique(hull.simplices)
+    remap = np.full(len(points), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return points[used], remap[hull.simplices], hull.equations
+
+
 def _csr_adjacency(n: int, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Vertex adjacency of a triangle mesh as CSR (offsets (n+1,), neighbours), sorted, no repeats."""
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
@@ -78,20 +91,12 @@ class Polyhedron(Shape):
         """Convex hull of ``points`` ((n, 3), metres). Needs 4 affinely independent finite points."""
         pts = as_points(points, "points", min_count=4)
         _check_full_dimensional(pts)
-        try:
-            hull = ConvexHull(pts)
-        except QhullError as exc:
-            raise ValueError(f"qhull could not build a hull from these points: {exc}".splitlines()[0]) from None
-        used = np.unique(hull.simplices)
-        remap = np.full(len(pts), -1, dtype=np.int64)
-        remap[used] = np.arange(len(used))
-        vertices = pts[used]
-        faces = remap[hull.simplices]
+        vertices, faces, planes = convex_hull(pts)
         # qhull's equations are outward; orient each triangle to agree with its facet's normal
         a, b, c = (vertices[faces[:, k]] for k in range(3))
-        flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), hull.equations[:, :3]) < 0
+        flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), planes[:, :3]) < 0
         faces[flip, 1], faces[flip, 2] = faces[flip, 2], faces[flip, 1].copy()
-        return cls(vertices, faces, hull.equations)
+        return cls(vertices, faces, planes)
 
     @classmethod
     def from_mesh(cls, mesh) -> "Polyhedron":
