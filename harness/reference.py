@@ -140,7 +140,7 @@ def _hull_caps(poly: Polyhedron) -> _Caps:
         nbrs = nbrs[nbrs != v]
         e = verts[nbrs] - verts[v]
         nbr_edges.append(e / np.linalg.norm(e, axis=1)[:, None])
-        nbr_normals.append(np.unique(hull.equations[fac, :3], axis=0))
+        nbr_normals.append(np.unique(planes[fac, :3], axis=0))
     width = min(SAT_MAX_DEGREE, max(max(len(e) for e in nbr_edges), max(len(n) for n in nbr_normals)))
     edges, ok_e = _padded(nbr_edges, width)
     cone_normals, ok_n = _padded(nbr_normals, width)
