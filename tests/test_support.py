@@ -7,7 +7,8 @@ from hypothesis import strategies as st
 
 import spq
 from spq.kernels import kinds
-from spq.kernels.support import cube_cell, cube_cell_centres, support_many
+from spq.kernels.dispatch import support_many
+from spq.kernels.support import cube_cell, cube_cell_centres
 
 
 def _random_hull(seed, n=400):

@@ -22,7 +22,7 @@ import numpy as np
 from spq.kernels.jit import kernel
 
 from spq.kernels.kinds import POLYTOPE
-from spq.kernels.support import support_local
+from spq.kernels.dispatch import support_local
 
 SEPARATED = 0
 TOUCHING = 1

@@ -16,6 +16,7 @@ POLYTOPE = 0
 BOX = 1
 POINT = 2
 SEGMENT = 3
+STP = 4  # sphere-torus-patch bounding volume: layout in kernels/stp_support.py
 
 CUBE_MAP_CELLS = 8  # G: cells per cube-map face edge; 6 * 8 * 8 = 384 start vertices
 BRUTE_FORCE_MAX_VERTICES = 32  # below this a linear scan beats hill climbing (NOTES section 5)

@@ -1,8 +1,7 @@
-"""Support functions of the shape cores, compiled, over the flat layout of ``kernels.kinds``.
+"""Support function of a convex polytope: brute force, or hill climbing from a cube-map start.
 
 A support function takes a direction (d0, d1, d2) in the shape's local frame (any length, not
-necessarily unit) and returns the farthest core point along it. Margins (sphere and capsule radii)
-are handled by the solver, not here, so that GJK runs on the exact polyhedral/segment cores.
+necessarily unit) and returns the farthest vertex along it.
 """
 
 from __future__ import annotations
@@ -10,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from spq.kernels.jit import kernel
 
-from spq.kernels.kinds import BOX, BRUTE_FORCE_MAX_VERTICES, POINT, POLYTOPE, SEGMENT
+from spq.kernels.kinds import BRUTE_FORCE_MAX_VERTICES
 
 
 @kernel(inline="always")
@@ -106,52 +105,3 @@ def polytope_support_index(f, ix, d0, d1, d2, start):
     if n <= BRUTE_FORCE_MAX_VERTICES:
         return polytope_support_brute(f, n, d0, d1, d2)
     return polytope_support_climb(f, ix, d0, d1, d2, start)
-
-
-@kernel(inline="always")
-def _sign_half(h, d):
-    return h if d >= 0.0 else -h
-
-
-@kernel
-def support_local(kind, f, ix, d0, d1, d2, warm, out):
-    """Write the core support point along (d0, d1, d2) (local frame) into out[0:3].
-
-    ``warm`` is the feature index the search starts from (a vertex for polytopes, ignored
-    otherwise); the feature found is returned so the caller can warm-start the next call.
-    """
-    if kind == POLYTOPE:
-        i = polytope_support_index(f, ix, d0, d1, d2, warm)
-        out[0] = f[3 * i]
-        out[1] = f[3 * i + 1]
-        out[2] = f[3 * i + 2]
-        return i
-    if kind == BOX:
-        out[0] = _sign_half(f[0], d0)
-        out[1] = _sign_half(f[1], d1)
-        out[2] = _sign_half(f[2], d2)
-        return 0
-    if kind == SEGMENT:
-        out[0] = 0.0
-        out[1] = 0.0
-        out[2] = _sign_half(f[0], d2)
-        return 0
-    # POINT
-    out[0] = 0.0
-    out[1] = 0.0
-    out[2] = 0.0
-    return 0
-
-
-@kernel
-def support_many(kind, f, ix, directions):
-    """Support points (m, 3) for an (m, 3) array of local directions (cold start each)."""
-    m = directions.shape[0]
-    out = np.empty((m, 3))
-    tmp = np.empty(3)
-    for k in range(m):
-        support_local(kind, f, ix, directions[k, 0], directions[k, 1], directions[k, 2], 0, tmp)
-        out[k, 0] = tmp[0]
-        out[k, 1] = tmp[1]
-        out[k, 2] = tmp[2]
-    return out

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from spq.io.mesh import load_mesh_vertices
 from spq.io.qhull import read_qhull_off
 from spq.kernels import kinds
 from spq.kernels.support import cube_cell_centres
@@ -101,21 +101,7 @@ class Polyhedron(Shape):
     @classmethod
     def from_mesh(cls, mesh) -> "Polyhedron":
         """Convex hull of a mesh's vertices; ``mesh`` is a path trimesh can load or a trimesh object."""
-        import trimesh
-
-        if isinstance(mesh, (str, Path)):
-            path = Path(mesh)
-            if not path.is_file():
-                raise ValueError(f"mesh file not found: {path}")
-            try:
-                loaded = trimesh.load(path, force="mesh", process=False)
-            except Exception as exc:  # trimesh raises many types for unreadable files
-                raise ValueError(f"cannot read mesh {path}: {exc}") from None
-            mesh = loaded
-        vertices = getattr(mesh, "vertices", None)
-        if vertices is None or len(vertices) == 0:
-            raise ValueError(f"mesh {mesh!r} has no vertices")
-        return cls.from_points(np.asarray(vertices))
+        return cls.from_points(load_mesh_vertices(mesh))
 
     @classmethod
     def from_qhull_file(cls, path) -> "Polyhedron":

@@ -1,0 +1,200 @@
+"""Support function of an STP-BV: find the patch whose vector Voronoi region (VVR) holds the
+direction, then take that sphere's or torus's support point (paper section III, NOTES section 1).
+
+Layout (kind STP, see kinds.py):
+fdata = [r, R, rho, vertices (3V), face centres (3F), tori (7E: centre m, axis e, circle radius a),
+         boundaries (4B: axis, cos), underlying-hull vertices (3H)]
+idata = [V, F, E, B, method, H, then offsets below (header of IDX_* entries),
+         patch offsets (P + 1), records (3 per record: boundary, side, neighbour patch),
+         underlying-hull polytope idata, hull vertex -> small sphere]
+Patches are numbered small spheres 0..V-1, big spheres V..V+F-1, tori V+F..V+F+E-1.
+A record (b, side, q) of patch p says: p's region lies where g = v.axis_b - cos_b >= 0 (side +1)
+or g < 0 (side -1), and q lies across. Each boundary is stored once and read by its two patches
+with opposite sides, so every direction has exactly one owner.
+"""
+
+from __future__ import annotations
+
+import math
+
+from spq.kernels.jit import kernel
+from spq.kernels.support import polytope_support_index
+
+METHOD_NAIVE = 0
+METHOD_MARCH = 1
+METHOD_HULL = 2
+METHOD_NAMES = ("naive", "march", "hull")
+
+# idata header
+IDX_V, IDX_F, IDX_E, IDX_B, IDX_METHOD, IDX_H = 0, 1, 2, 3, 4, 5
+IDX_PATCH_OFFSETS, IDX_RECORDS, IDX_HULL, IDX_HULL_MAP = 6, 7, 8, 9
+HEADER_SIZE = 10
+# fdata offsets
+F_R, F_BIG_R, F_RHO, F_VERTICES = 0, 1, 2, 3
+
+
+@kernel
+def _offsets(ix):
+    V, F, E = ix[IDX_V], ix[IDX_F], ix[IDX_E]
+    o_faces = F_VERTICES + 3 * V
+    o_tori = o_faces + 3 * F
+    o_bound = o_tori + 7 * E
+    o_hull = o_bound + 4 * ix[IDX_B]
+    return o_faces, o_tori, o_bound, o_hull
+
+
+@kernel
+def record_violation(f, ix, o_bound, rec, u0, u1, u2):
+    """How far unit direction u is on the wrong side of record rec (<= 0: on its patch's side)."""
+    base = ix[IDX_RECORDS] + 3 * rec
+    b = ix[base]
+    side = ix[base + 1]
+    k = o_bound + 4 * b
+    g = u0 * f[k] + u1 * f[k + 1] + u2 * f[k + 2] - f[k + 3]
+    if side > 0:
+        return -g  # inside when g >= 0
+    # inside when g < 0: g == 0 belongs to the other patch, so it counts as a (zero) violation
+    return g if g > 0.0 else (1e-300 if g == 0.0 else g)
+
+
+@kernel
+def in_region(f, ix, o_bound, p, u0, u1, u2):
+    """True if unit direction u is in patch p's VVR."""
+    po = ix[IDX_PATCH_OFFSETS]
+    for rec in range(ix[po + p], ix[po + p + 1]):
+        if record_violation(f, ix, o_bound, rec, u0, u1, u2) > 0.0:
+            return False
+    return True
+
+
+@kernel
+def find_naive(f, ix, o_bound, u0, u1, u2):
+    """Scan all patches (O(n)); if rounding leaves u unowned, the least-violated patch."""
+    P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
+    po = ix[IDX_PATCH_OFFSETS]
+    best, best_viol = 0, math.inf
+    for p in range(P):
+        worst = 0.0
+        for rec in range(ix[po + p], ix[po + p + 1]):
+            worst = max(worst, record_violation(f, ix, o_bound, rec, u0, u1, u2))
+        if worst <= 0.0:
+            return p
+        if worst < best_viol:
+            best, best_viol = p, worst
+    return best
+
+
+@kernel
+def march_step(f, ix, o_bound, p, u0, u1, u2):
+    """The next patch of the guided march from p, or -1 if u is in p's region (paper III.C.2).
+
+    Small sphere: the torus across the most violated cone. Big sphere: across the first violated
+    boundary. Torus: a violated face plane first, else the small sphere across a violated cone."""
+    V, F = ix[IDX_V], ix[IDX_F]
+    po = ix[IDX_PATCH_OFFSETS]
+    nxt = -1
+    worst = 0.0
+    is_torus = p >= V + F
+    for rec in range(ix[po + p], ix[po + p + 1]):
+        viol = record_violation(f, ix, o_bound, rec, u0, u1, u2)
+        if viol <= 0.0:
+            continue
+        q = ix[ix[IDX_RECORDS] + 3 * rec + 2]
+        if p < V:
+            if viol > worst:
+                worst, nxt = viol, q
+        elif not is_torus:
+            return q
+        elif q >= V:  # a torus's plane towards a big sphere: take it at once
+            return q
+        elif nxt < 0:
+            nxt = q
+    return nxt
+
+
+@kernel
+def find_march(f, ix, o_bound, start, u0, u1, u2):
+    """Guided march from patch ``start``; capped at the patch count, then the naive scan.
+
+    Returns (patch, steps)."""
+    P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
+    p = start if 0 <= start < P else 0
+    for steps in range(P):
+        q = march_step(f, ix, o_bound, p, u0, u1, u2)
+        if q < 0:
+            return p, steps
+        p = q
+    return find_naive(f, ix, o_bound, u0, u1, u2), P
+
+
+@kernel
+def find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2):
+    """The warm patch if it still holds u; else hill climb on the underlying convex hull to the
+    farthest small sphere and march from it (paper III.C.3). Returns (patch, steps)."""
+    P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
+    if 0 <= start < P and in_region(f, ix, o_bound, start, u0, u1, u2):
+        return start, 0
+    H = ix[IDX_H]
+    if H == 0:  # no underlying hull (fewer than 4 or coplanar centres): march from the start
+        p, steps = find_march(f, ix, o_bound, start, u0, u1, u2)
+        return p, steps
+    hull_f = f[o_hull:o_hull + 3 * H]
+    hull_ix = ix[ix[IDX_HULL]:ix[IDX_HULL_MAP]]
+    h = polytope_support_index(hull_f, hull_ix, u0, u1, u2, -1)
+    p, steps = find_march(f, ix, o_bound, ix[ix[IDX_HULL_MAP] + h], u0, u1, u2)
+    return p, steps + 1
+
+
+@kernel
+def find_patch(f, ix, method, start, u0, u1, u2):
+    """(patch, steps) owning unit direction u, by METHOD_NAIVE, METHOD_MARCH or METHOD_HULL."""
+    o_faces, o_tori, o_bound, o_hull = _offsets(ix)
+    if method == METHOD_NAIVE:
+        return find_naive(f, ix, o_bound, u0, u1, u2), ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
+    if method == METHOD_MARCH:
+        return find_march(f, ix, o_bound, start, u0, u1, u2)
+    return find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2)
+
+
+@kernel
+def patch_support(f, ix, p, u0, u1, u2, out):
+    """Support point of patch p along unit u into out[0:3]."""
+    V, F = ix[IDX_V], ix[IDX_F]
+    o_faces, o_tori, o_bound, o_hull = _offsets(ix)
+    if p < V:
+        k = F_VERTICES + 3 * p
+        rad = f[F_R]
+        out[0] = f[k] + rad * u0
+        out[1] = f[k + 1] + rad * u1
+        out[2] = f[k + 2] + rad * u2
+    elif p < V + F:
+        k = o_faces + 3 * (p - V)
+        rad = f[F_BIG_R]
+        out[0] = f[k] + rad * u0
+        out[1] = f[k + 1] + rad * u1
+        out[2] = f[k + 2] + rad * u2
+    else:
+        # torus: the point of the centre circle opposite u, plus the big sphere's support
+        k = o_tori + 7 * (p - V - F)
+        e0, e1, e2, a = f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+        ue = u0 * e0 + u1 * e1 + u2 * e2
+        w0, w1, w2 = u0 - ue * e0, u1 - ue * e1, u2 - ue * e2
+        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        if wn > 0.0:
+            w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
+        rad = f[F_BIG_R]
+        out[0] = f[k] - a * w0 + rad * u0
+        out[1] = f[k + 1] - a * w1 + rad * u1
+        out[2] = f[k + 2] - a * w2 + rad * u2
+
+
+@kernel
+def stp_support(f, ix, method, d0, d1, d2, start, out):
+    """Support point of the STP-BV along direction d (any length) into out; returns the patch."""
+    n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if n == 0.0:
+        d0, n = 1.0, 1.0
+    u0, u1, u2 = d0 / n, d1 / n, d2 / n
+    p, _ = find_patch(f, ix, method, start, u0, u1, u2)
+    patch_support(f, ix, p, u0, u1, u2, out)
+    return p

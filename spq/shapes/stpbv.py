@@ -1,0 +1,235 @@
+"""Sphere-torus-patch bounding volume (STP-BV): a strictly convex, C1 hull of a point set."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from spq.kernels import kinds
+from spq.kernels import stp_support as ks
+from spq.shapes.base import KernelData, Shape
+from spq.stp.topology import NO_FACE, STPTopology
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+class STPBV(Shape):
+    """An STP-BV in its local frame (metres): small spheres of radius r on the vertices, big
+    spheres of radius R on the faces, tori on the edges (paper section II, NOTES section 1).
+
+    Build it with :meth:`from_points`, :meth:`from_mesh` or :meth:`from_sch_file`.
+
+    Attributes
+    ----------
+    topology : STPTopology
+    r, R : float
+    torus_centres, torus_axes : (E, 3); torus_radii : (E,)  (real tori only, in patch order)
+    boundary_axes : (B, 3); boundary_cos : (B,)  every region boundary, stored once
+    patch_offsets : (P + 1,); records : (nrec, 3) int: (boundary, side, neighbour patch) per patch
+    hull : Polyhedron or None, the convex hull of the small-sphere centres (the underlying PCH)
+    hull_to_small : (H,) int, small-sphere index of each hull vertex
+    method : 'naive' | 'march' | 'hull', the feature search the solver uses
+    """
+
+    def __init__(self, topology: STPTopology, method: str = "hull"):
+        topology.check()
+        self.topology = topology
+        self.r, self.R = float(topology.r), float(topology.R)
+        self._build_patches()
+        self._build_hull()
+        self._kernel = None
+        self.method = method
+
+    # --- constructors -------------------------------------------------------------------------
+    @classmethod
+    def from_points(cls, points, r: float, R: float, method: str = "hull") -> "STPBV":
+        """STP-BV of a point cloud ((n, 3), metres) with small radius r and big radius R > r.
+
+        Raises ValueError for bad points or radii; if R is too small for the cloud, the message
+        gives the smallest admissible R.
+        """
+        from spq.stp.construction import build_topology
+
+        return cls(build_topology(points, r, R), method)
+
+    @classmethod
+    def from_mesh(cls, mesh, r: float, R: float, method: str = "hull") -> "STPBV":
+        """STP-BV of a mesh's vertices; ``mesh`` is a path trimesh can load or a trimesh object."""
+        from spq.io.mesh import load_mesh_vertices
+
+        return cls.from_points(load_mesh_vertices(mesh), r, R, method)
+
+    @classmethod
+    def from_sch_file(cls, path, method: str = "hull") -> "STPBV":
+        """Read an STP-BV in the sch-core text format (NOTES section 3)."""
+        from spq.io.sch import read_sch_stp
+
+        return cls(read_sch_stp(Path(path)), method)
+
+    def to_sch_file(self, path) -> None:
+        """Write this STP-BV in the sch-core text format."""
+        from spq.io.sch import write_sch_stp
+
+        write_sch_stp(self.topology, Path(path))
+
+    # --- structure ----------------------------------------------------------------------------
+    def _build_patches(self) -> None:
+        topo = self.topology
+        x = topo.vertices
+        V, F = len(x), len(topo.faces)
+        rho = topo.rho
+        real = np.flatnonzero(topo.edge_real)
+        self.torus_edges = real
+        a, b = topo.edges[real, 0], topo.edges[real, 1]
+        length = np.linalg.norm(x[a] - x[b], axis=1)
+        self.torus_centres = 0.5 * (x[a] + x[b])
+        self.torus_axes = (x[a] - x[b]) / length[:, None]
+        self.torus_radii = np.sqrt(np.maximum(rho * rho - 0.25 * length * length, 0.0))
+        axes, coss, recs = [], [], []  # recs: (patch, boundary, side, neighbour)
+
+        def boundary(axis, cos, inside_patch, outside_patch):
+            k = len(coss)
+            axes.append(axis)
+            coss.append(cos)
+            recs.append((inside_patch, k, 1, outside_patch))
+            recs.append((outside_patch, k, -1, inside_patch))
+
+        for t, e in enumerate(real):
+            torus = V + F + t
+            va, vb = topo.edges[e]
+            f1, f2 = topo.edge_faces[e]
+            for f, (u, w) in ((f1, (va, vb)), (f2, (vb, va))):
+                if f != NO_FACE:
+                    c = topo.face_centres[f]
+                    boundary(_unit(np.cross(x[u] - c, x[w] - c)), 0.0, V + f, torus)
+            cos = length[t] / (2.0 * rho)
+            boundary(self.torus_axes[t], cos, va, torus)
+            boundary(-self.torus_axes[t], cos, vb, torus)
+        for e in np.flatnonzero(~topo.edge_real):
+            va, vb = topo.edges[e]
+            f1, f2 = topo.edge_faces[e]
+            c = topo.face_centres[f1]
+            boundary(_unit(np.cross(x[va] - c, x[vb] - c)), 0.0, V + f1, V + f2)
+        self.boundary_axes = np.array(axes, dtype=np.float64).reshape(-1, 3)
+        self.boundary_cos = np.array(coss, dtype=np.float64)
+        recs = np.array(recs, dtype=np.int64).reshape(-1, 4)
+        order = np.argsort(recs[:, 0], kind="stable")
+        recs = recs[order]
+        P = V + F + len(real)
+        self.patch_offsets = np.zeros(P + 1, dtype=np.int64)
+        np.cumsum(np.bincount(recs[:, 0], minlength=P), out=self.patch_offsets[1:])
+        self.records = np.ascontiguousarray(recs[:, 1:])
+
+    def _build_hull(self) -> None:
+        from spq.shapes.polyhedron import Polyhedron
+
+        x = self.topology.vertices
+        try:
+            self.hull = Polyhedron.from_points(x)
+        except ValueError:  # fewer than 4 points or a flat cloud: the march starts from patch 0
+            self.hull = None
+            self.hull_to_small = np.zeros(0, dtype=np.int64)
+            return
+        index = {tuple(p): i for i, p in enumerate(x)}
+        self.hull_to_small = np.array([index[tuple(p)] for p in self.hull.vertices], dtype=np.int64)
+
+    # --- counts -------------------------------------------------------------------------------
+    @property
+    def n_small(self) -> int:
+        return len(self.topology.vertices)
+
+    @property
+    def n_big(self) -> int:
+        return len(self.topology.faces)
+
+    @property
+    def n_tori(self) -> int:
+        return len(self.torus_edges)
+
+    @property
+    def n_patches(self) -> int:
+        """Feature count: small spheres + big spheres + (real) tori."""
+        return self.n_small + self.n_big + self.n_tori
+
+    def counts(self) -> dict:
+        return self.topology.counts()
+
+    # --- kernel view --------------------------------------------------------------------------
+    @property
+    def method(self) -> str:
+        return self._method
+
+    @method.setter
+    def method(self, name: str) -> None:
+        if name not in ks.METHOD_NAMES:
+            raise ValueError(f"unknown support method {name!r}; choose one of {ks.METHOD_NAMES}")
+        self._method = name
+        if self._kernel is not None:
+            self._kernel.idata[ks.IDX_METHOD] = ks.METHOD_NAMES.index(name)
+
+    def kernel_data(self) -> KernelData:
+        if self._kernel is None:
+            topo = self.topology
+            tori = np.hstack([self.torus_centres, self.torus_axes, self.torus_radii[:, None]])
+            bounds = np.hstack([self.boundary_axes, self.boundary_cos[:, None]])
+            hull_f = self.hull.vertices if self.hull is not None else np.zeros((0, 3))
+            fdata = np.concatenate([[self.r, self.R, topo.rho], topo.vertices.ravel(), topo.face_centres.ravel(),
+                                    tori.ravel(), bounds.ravel(), hull_f.ravel()])
+            hull_i = self.hull.kernel_data().idata if self.hull is not None else np.zeros(0, dtype=np.int64)
+            o_po = ks.HEADER_SIZE
+            o_rec = o_po + len(self.patch_offsets)
+            o_hull = o_rec + self.records.size
+            o_map = o_hull + len(hull_i)
+            header = [self.n_small, self.n_big, self.n_tori, len(self.boundary_cos),
+                      ks.METHOD_NAMES.index(self._method), len(self.hull_to_small), o_po, o_rec, o_hull, o_map]
+            idata = np.concatenate([header, self.patch_offsets, self.records.ravel(), hull_i, self.hull_to_small])
+            self._kernel = KernelData(kinds.STP, 0.0, np.ascontiguousarray(fdata, dtype=np.float64),
+                                      np.ascontiguousarray(idata, dtype=np.int64))
+        return self._kernel
+
+    def bounding_radius(self) -> float:
+        topo = self.topology
+        return float(np.sqrt((topo.vertices**2).sum(axis=1).max()) + self.r)
+
+    # --- queries ------------------------------------------------------------------------------
+    def support(self, directions, method: str | None = None, coherent: bool = False) -> np.ndarray:
+        """Support point(s) (local frame, m) along direction(s) (3,) or (m, 3), any length.
+
+        method: 'naive', 'march' or 'hull' (default: this object's method). coherent: warm-start
+        each search from the previous direction's patch (as along a smooth path)."""
+        from spq.kernels.stp_batch import support_batch
+
+        d = np.asarray(directions, dtype=np.float64)
+        single = d.ndim == 1
+        d = np.ascontiguousarray(d.reshape(-1, 3))
+        if not np.isfinite(d).all():
+            raise ValueError("directions must be finite")
+        kd = self.kernel_data()
+        m = ks.METHOD_NAMES.index(method or self._method) if (method or self._method) in ks.METHOD_NAMES else -1
+        if m < 0:
+            raise ValueError(f"unknown support method {method!r}; choose one of {ks.METHOD_NAMES}")
+        points, _, _ = support_batch(kd.fdata, kd.idata, m, d, coherent)
+        return points[0] if single else points
+
+    def support_patches(self, directions, method: str | None = None, coherent: bool = False):
+        """(points (m, 3), patches (m,), search steps (m,)) for an (m, 3) array of directions."""
+        from spq.kernels.stp_batch import support_batch
+
+        kd = self.kernel_data()
+        m = ks.METHOD_NAMES.index(method or self._method)
+        d = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+        return support_batch(kd.fdata, kd.idata, m, d, coherent)
+
+    def owner_counts(self, directions) -> np.ndarray:
+        """For each direction, how many patches' regions hold it (1 everywhere for a sound STP-BV)."""
+        from spq.kernels.stp_batch import owner_counts
+
+        kd = self.kernel_data()
+        return owner_counts(kd.fdata, kd.idata, np.ascontiguousarray(np.asarray(directions, dtype=np.float64)))
+
+    def __repr__(self) -> str:
+        return (f"STPBV(r={self.r}, R={self.R}: {self.n_small} small spheres, {self.n_big} big spheres, "
+                f"{self.n_tori} tori)")
