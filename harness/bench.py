@@ -2,13 +2,13 @@
 
 Each engine runs its leanest per-query Python loop (``PreparedPair.distance_loop``); spq also runs its
 batched compiled call. The figure reported is the best of ``repeats`` timed runs (the least disturbed
-by other load on the machine), and every rate is divided by coal's from the same run.
+by other load on the machine), and every rate is divided by coal's PCH-PCH rate from the same run.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -16,7 +16,7 @@ import pandas as pd
 from harness.engines import available_engines
 from harness.poses import random_poses
 
-BASELINE = "coal"
+BASELINE = ("PCH-PCH", "coal")
 
 
 @dataclass
@@ -27,6 +27,9 @@ class BenchConfig:
     translation_range: float = 0.3  # m: translations uniform in [-range, range]^3
     repeats: int = 3
     engines: list[str] | None = None
+    r: float = 0.005  # STP-BV radii (m), for the STP pairs
+    R: float = 2.0
+    pairs: list[str] = field(default_factory=lambda: ["PCH-PCH"])
 
 
 def _best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
@@ -38,7 +41,7 @@ def _best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
     return best, out
 
 
-def _timed_rows(pair, name: str, poses_a, poses_b, repeats: int) -> list[dict]:
+def _timed_rows(pair, poses_a, poses_b, repeats: int) -> list[dict]:
     """Warm up (compilation, caches) on a few poses, then time the loop and, for spq, the batch."""
     n = len(poses_a)
     modes = [("per-call", pair.distance_loop)]
@@ -48,33 +51,51 @@ def _timed_rows(pair, name: str, poses_a, poses_b, repeats: int) -> list[dict]:
     for mode, fn in modes:
         fn(poses_a[:8], poses_b[:8])
         seconds, dist = _best_time(lambda: fn(poses_a, poses_b), repeats)
-        rows.append({"engine": name, "mode": mode, "queries": n, "seconds": seconds,
-                     "queries_per_s": n / seconds, "overlapping": int(np.sum(np.asarray(dist) <= 0.0))})
+        rows.append({"mode": mode, "queries": n, "seconds": seconds, "queries_per_s": n / seconds,
+                     "overlapping": int(np.sum(np.asarray(dist) <= 0.0))})
     return rows
 
 
+def _shapes(config: BenchConfig, load_object) -> dict:
+    from spq.shapes.stpbv import STPBV
+
+    pch = load_object(config.object_name)
+    shapes = {"PCH": pch}
+    if any("STP" in p for p in config.pairs):
+        shapes["STP"] = STPBV.from_points(pch.vertices, config.r, config.R)
+    return shapes
+
+
 def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.DataFrame:
-    """Queries per second per engine (and mode) on two copies of one object, with ratios to coal."""
+    """Queries per second per pair type, engine and mode on two copies of one object, with the
+    ratio to coal's PCH-PCH rate. External engines only run PCH-PCH (they have no STP-BV)."""
     from tqdm import tqdm
 
-    obj = load_object(config.object_name)
+    shapes = _shapes(config, load_object)
     poses_a, poses_b = random_poses(config.poses, config.seed, config.translation_range)
     engines = available_engines(config.engines)
+    jobs = [(p, name) for p in config.pairs for name in engines if p == "PCH-PCH" or name == "spq"]
     rows = []
     try:
-        for name, engine in tqdm(engines.items(), desc="bench", unit="engine", disable=not progress):
-            pair = engine.prepare(obj, obj)
+        for pair_type, name in tqdm(jobs, desc="bench", unit="run", disable=not progress):
+            a_kind, b_kind = pair_type.split("-")
+            pair = engines[name].prepare(shapes[a_kind], shapes[b_kind])
             try:
-                rows += _timed_rows(pair, name, poses_a, poses_b, config.repeats)
+                for row in _timed_rows(pair, poses_a, poses_b, config.repeats):
+                    rows.append({"pair": pair_type, "engine": name, **row})
             finally:
                 pair.close()
     finally:
         for engine in engines.values():
             engine.close()
     table = pd.DataFrame(rows)
-    base = table.loc[table.engine == BASELINE, "queries_per_s"]
-    table["ratio_to_coal"] = table.queries_per_s / base.iloc[0] if len(base) else np.nan
+    base = table.loc[(table.pair == BASELINE[0]) & (table.engine == BASELINE[1]), "queries_per_s"]
+    table["ratio_to_coal_pch"] = table.queries_per_s / base.iloc[0] if len(base) else np.nan
     table.insert(0, "object", config.object_name)
-    table["vertices"] = len(obj.vertices)
+    table["features"] = table.pair.map(lambda p: "+".join(str(_feature_count(shapes[k])) for k in p.split("-")))
     table["seed"] = config.seed
     return table
+
+
+def _feature_count(shape) -> int:
+    return getattr(shape, "n_patches", None) or len(shape.vertices)

@@ -70,19 +70,23 @@ def cmd_bench(args) -> int:
     from harness.report.meta import run_metadata
     from harness.report.tables import write_table
 
+    pairs = {"pch": ["PCH-PCH"], "stp": ["PCH-PCH", "STP-PCH", "STP-STP"]}[args.suite]
     config = bench.BenchConfig(object_name=args.object, poses=args.poses, seed=args.seed,
-                               translation_range=args.range, repeats=args.repeats, engines=args.engines)
+                               translation_range=args.range, repeats=args.repeats, engines=args.engines,
+                               r=args.r, R=args.R, pairs=pairs)
     table = bench.throughput(config, load_object, progress=not args.quiet)
     meta = run_metadata(command=f"spq bench {args.suite}", seed=args.seed, poses=args.poses,
                         translation_range_m=args.range, repeats=args.repeats, spq_tol_abs=DEFAULT_TOL_ABS,
-                        spq_tol_rel=DEFAULT_TOL_REL, coal_gjk_tolerance=1e-8)
-    notes = (f"Two copies of {args.object} ({table.vertices.iloc[0]} hull vertices), {args.poses} pose pairs "
-             f"with uniformly random rotations and translations uniform in ±{args.range} m, seed {args.seed}. "
-             "Best of the repeats; every engine in the same run. per-call: one Python call per query; "
-             "batched: one compiled call for all poses.")
-    write_table(table, Path(args.out), f"bench_{args.suite}", f"Throughput, {args.suite.upper()}-{args.suite.upper()}",
-                meta, notes)
-    _print(table[["engine", "mode", "queries_per_s", "ratio_to_coal", "overlapping"]])
+                        spq_tol_rel=DEFAULT_TOL_REL, coal_gjk_tolerance=1e-8,
+                        **({"stp_r": args.r, "stp_R": args.R} if args.suite == "stp" else {}))
+    notes = (f"Two copies of {args.object}, {args.poses} pose pairs with uniformly random rotations and "
+             f"translations uniform in ±{args.range} m, seed {args.seed}. Best of {args.repeats} repeats; every "
+             "engine in the same run. per-call: one Python call per query; batched: one compiled call for all "
+             "poses. features: vertices (PCH) or patches (STP) of each side.")
+    if args.suite == "stp":
+        notes += f" STP-BV built from the link's hull vertices with r = {args.r} m, R = {args.R} m."
+    write_table(table, Path(args.out), f"bench_{args.suite}", f"Throughput ({args.suite})", meta, notes)
+    _print(table[["pair", "engine", "mode", "queries_per_s", "ratio_to_coal_pch", "features", "overlapping"]])
     return 0
 
 
@@ -101,13 +105,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_crosscheck)
 
     p = sub.add_parser("bench", help="throughput benchmarks")
-    p.add_argument("suite", choices=["pch"], help="pch: polyhedron-polyhedron")
+    p.add_argument("suite", choices=["pch", "stp"],
+                   help="pch: PCH-PCH, every engine; stp: STP-PCH and STP-STP (spq) beside PCH-PCH")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--range", type=float, default=0.3, help="translation range (m), uniform in ±range")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--engines", nargs="+", help="engine names (default: all that import)")
+    p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m), stp suite")
+    p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m), stp suite")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bench)
