@@ -12,15 +12,8 @@ import math
 import numpy as np
 from spq.kernels.jit import kernel
 
-from spq.kernels.gjk import (
-    OUT_NORMAL,
-    OUT_POINT_A,
-    OUT_POINT_B,
-    WARM_COUNT,
-    WARM_SIZE,
-    WORK_ROWS,
-    gjk_query,
-)
+from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, WARM_COUNT, WARM_SIZE, WORK_ROWS
+from spq.kernels.query import gjk_query
 
 POSE_OK = 0
 POSE_NOT_FINITE = 1

@@ -454,24 +454,6 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
 
 
 @kernel
-def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, work, out):
-    """Distance between core A (+ margin mA) and core B (+ margin mB), B at (R, t) in A's frame.
-
-    dir_io: (3,) initial search direction (zero: from A's origin to B's), overwritten with the final
-    closest-point direction for the next warm start. warm: int64 (WARM_SIZE,) warm-start state
-    (in/out; zeros for a cold start). work: (WORK_ROWS, 4) scratch. out: (OUT_SIZE,) result vector, in A's frame.
-    Returns the status code.
-    """
-    status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
-                                                   dir_io, warm, work)
-    if status == TOUCHING and tol_abs > 0.0:
-        status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm)
-    _finish(status, k, work[12], work[4:8, 0:3], work[8:12, 0:3], v0, v1, v2, vv, lower, it, mA, mB, tol_abs,
-            dir_io, out)
-    return int(out[OUT_STATUS])
-
-
-@kernel
 def _finish(status, k, lam, PA, PB, v0, v1, v2, vv, lower, it, mA, mB, tol_abs, dir_io, out):
     """Witness points, normal, margins and the final status into out."""
     _combine(PA, lam, k, out, OUT_POINT_A)
