@@ -1,0 +1,84 @@
+"""Distances with STP-BVs: patch finishing against the plain GJK descent, the containment bound
+d_STP <= max(0, d_PCH - r) with coal's PCH distance, and the limit r -> 0, R -> infinity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import spq
+from datasets import load_object
+from harness.engines.coal_engine import CoalEngine
+from harness.poses import random_poses
+from spq.kernels import batch as kb
+from spq.kernels import gjk
+from spq.shapes.stpbv import STPBV
+
+
+@pytest.fixture(scope="module")
+def link4():
+    return load_object("kuka_link_4")
+
+
+@pytest.fixture(scope="module")
+def link2():
+    return load_object("kuka_link_2")
+
+
+def plain_descent(a, b, pose_a, pose_b, tol=1e-12):
+    """Distance by the plain GJK descent on the shapes' own supports (no hulls, no patches)."""
+    ka, kb_ = a.kernel_data(), b.kernel_data()
+    R, t = np.empty((3, 3)), np.empty(3)
+    kb.relative_pose(pose_a, pose_b, R, t)
+    work = np.empty((gjk.WORK_ROWS, 4))
+    warm = np.zeros(gjk.WARM_SIZE, dtype=np.int64)
+    st, k, v0, v1, v2, vv, lower, it = gjk.descend(ka.kind, ka.fdata, ka.idata, kb_.kind, kb_.fdata, kb_.idata, R, t,
+                                                   tol, tol, 2000, np.zeros(3), warm, work)
+    return st, np.sqrt(vv) - ka.margin - kb_.margin, lower - ka.margin - kb_.margin
+
+
+@pytest.mark.parametrize("R", [0.3, 2.0])
+def test_patch_finishing_agrees_with_the_plain_descent(link4, R):
+    stp = STPBV.from_points(link4.vertices, 0.005, R)
+    pa, pb = random_poses(150, seed=4, translation_range=0.3)
+    for a, b in ((stp, link4), (stp, stp), (link4, stp), (stp, spq.Sphere(0.03))):
+        batch = spq.distances(a, b, pa, pb)
+        for i in range(len(pa)):
+            st, upper, lower = plain_descent(a, b, pa[i], pb[i])
+            if batch.status[i] == "separated":
+                assert st == gjk.SEPARATED
+                assert lower - 1e-9 <= batch.distance[i] <= upper + 1e-9
+                assert batch.lower_bound[i] <= batch.distance[i] + 1e-15
+                gap = np.linalg.norm(batch.point_b[i] - batch.point_a[i])
+                assert abs(gap - batch.distance[i]) <= 1e-12
+            elif batch.status[i] == "overlapping":
+                assert st in (gjk.OVERLAPPING, gjk.TOUCHING) or upper <= 1e-9
+
+
+def test_stp_distance_is_at_most_the_pch_distance_minus_r(link4, link2):
+    r = 0.005
+    a, b = STPBV.from_points(link4.vertices, r, 2.0), STPBV.from_points(link2.vertices, r, 1.0)
+    pair = CoalEngine().prepare(link4, link2)
+    pa, pb = random_poses(300, seed=5, translation_range=0.3)
+    for i in range(len(pa)):
+        d_pch = pair.query(pa[i], pb[i]).distance
+        assert spq.distance(a, pa[i], link2, pb[i]).distance <= max(0.0, d_pch - r) + 1e-9
+        assert spq.distance(a, pa[i], b, pb[i]).distance <= max(0.0, d_pch - 2 * r) + 1e-9
+
+
+def test_stp_distance_tends_to_the_pch_distance_as_r_shrinks_and_r_grows(link4, link2):
+    pair = CoalEngine().prepare(link4, link2)
+    pa, pb = random_poses(40, seed=6, translation_range=0.4)
+    d_pch = np.array([pair.query(pa[i], pb[i]).distance for i in range(len(pa))])
+    keep = d_pch > 1e-3
+    errors = []
+    for r, R in ((1e-2, 0.5), (1e-3, 5.0), (1e-4, 50.0), (1e-5, 500.0)):
+        a = STPBV.from_points(link4.vertices, r, R)
+        b = STPBV.from_points(link2.vertices, r, R)
+        d = spq.distances(a, b, pa[keep], pb[keep]).distance
+        err = np.abs(d - d_pch[keep]).max()
+        # the excess of each STP-BV over its hull is r + O(L^2 / rho): bounded by 2 r + L^2 / rho
+        assert err <= 2 * r + 0.3**2 / (R - r)
+        errors.append(err)
+    assert all(e2 < e1 for e1, e2 in zip(errors, errors[1:]))
+    assert errors[-1] < 1e-3
