@@ -1,0 +1,2 @@
+"""What is specific to STP-BV: its topology (``topology``) and its construction from points
+(``construction``)."""
