@@ -122,3 +122,69 @@ def test_stp_distance_never_exceeds_the_pch_distance_minus_r(shared_datasets):
             r = spq.distance(a, pa, b, pb)
             assert r.status != "failed"
             assert r.distance <= max(0.0, d_pch - shrink) + 1e-9
+
+
+# --- built STP-BVs ---------------------------------------------------------------------------
+BUILT = [("kuka_link_4", 0.005, 2.0), ("kuka_link_4", 0.01, 0.3), ("kuka_link_2", 0.005, 1.0),
+         ("kuka_link_6", 0.002, 5.0), ("panda_link_2", 0.005, 0.5), ("panda_hand", 0.01, 0.2),
+         ("panda_link_5", 0.001, 20.0)]
+
+
+@pytest.mark.parametrize("name, r, R", BUILT)
+def test_built_links_have_unique_owners_agreeing_methods_and_pass_the_oracles(name, r, R):
+    from datasets import load_object
+
+    stp = STPBV.from_points(load_object(name).vertices, r, R)
+    check_support_oracles(stp, n=100_000, tol=1e-12)
+
+
+@pytest.mark.parametrize("seed, R", [(0, 0.15), (1, 0.5), (2, 3.0)])
+def test_built_support_matches_the_brute_force_over_q(seed, R):
+    from datasets import load_object
+
+    pts = load_object("kuka_link_4").vertices
+    sub = pts[np.random.default_rng(seed).choice(len(pts), 40, replace=False)]
+    stp = STPBV.from_points(sub, 0.004, R)
+    d = directions(400, seed)
+    np.testing.assert_allclose(stp.support(d), brute_force_support_many(sub, 0.004, R, d), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["cube2x2", "s2x2"])
+def test_the_reference_generator_is_reproduced_from_its_cloud(shared_datasets, name):
+    root = shared_datasets / "sch-creator-examples"
+    lines = (root / "cloud" / f"{name}.cloud").read_text().split()
+    cloud = np.array(lines[2:], dtype=float).reshape(int(lines[1]), 3)
+    from_file = STPBV.from_sch_file(root / "stp" / f"{name}.txt")
+    built = STPBV.from_points(cloud, from_file.r, from_file.R)
+    assert built.counts() == from_file.counts()
+    d = directions(100_000, 9)
+    np.testing.assert_allclose(built.support(d), from_file.support(d), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("kwargs, what", [
+    (dict(points=np.random.default_rng(0).normal(size=(20, 3)), r=0.01, R=0.5), r"need R >= "),
+    (dict(points=np.random.default_rng(0).normal(size=(20, 3)), r=0.0, R=5.0), "r"),
+    (dict(points=np.random.default_rng(0).normal(size=(20, 3)), r=0.1, R=0.1), "R"),
+    (dict(points=np.array([[0.0, 0, 0], [np.nan, 0, 0], [1, 1, 1]]), r=0.01, R=5.0), "NaN"),
+    (dict(points=np.zeros((5, 3)), r=0.01, R=5.0), "distinct"),
+])
+def test_bad_construction_input_raises_value_error(kwargs, what):
+    with pytest.raises(ValueError, match=what):
+        STPBV.from_points(**kwargs)
+
+
+def test_malformed_sch_file_raises_value_error(tmp_path):
+    bad = tmp_path / "bad.txt"
+    bad.write_text("0.1 1\n 2\n0.1 0 0 x\n")
+    with pytest.raises(ValueError):
+        STPBV.from_sch_file(bad)
+
+
+def test_the_smallest_admissible_r_in_the_message_is_accepted():
+    import re
+
+    pts = np.random.default_rng(0).normal(size=(20, 3))
+    with pytest.raises(ValueError) as info:
+        STPBV.from_points(pts, 0.01, 0.5)
+    bound = float(re.search(r"R >= ([0-9.eE+-]+) \(with", str(info.value)).group(1))
+    assert STPBV.from_points(pts, 0.01, bound).n_small >= 2
