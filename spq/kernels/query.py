@@ -32,8 +32,8 @@ from spq.kernels.gjk import (
     _finish,
     certify_overlap,
     descend,
-    minkowski_support,
 )
+from spq.kernels.dispatch import support_local
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
 from spq.kernels.stp_support import (
@@ -48,7 +48,9 @@ from spq.kernels.stp_support import (
     IDX_V,
     _offsets,
     find_patch,
+    in_region,
     march_step,
+    patch_support,
 )
 
 LOOSE_REL_TOL = 1e-3  # relative tolerance of the first descent, which only has to find the patches
@@ -92,15 +94,13 @@ def next_patch(f, ix, p, d0, d1, d2):
 
 
 @kernel
-def torus_far_normal(f, ix, p, q0, q1, q2, toward):
-    """Unit normal between q and the point c of torus p's centre circle farthest from q (local frame):
-    from c to q if toward, else from q to c; zeros if p is not a torus or q is on the axis.
-
-    The STP-BV lies in every ball of radius R centred on the torus's circle arc, so facing a point q
-    its distance is largest, and exact, for the ball centred farthest from q."""
+def far_ball_centre(f, ix, p, c0, c1, c2, q0, q1, q2):
+    """Centre of patch p's ball facing the point q (local frame): a sphere's own centre (c), or for
+    a torus the point of its centre circle farthest from q. The STP-BV lies in every ball of radius
+    R centred on the torus's circle arc, so facing q its distance is largest, and exact, there."""
     V, F = ix[IDX_V], ix[IDX_F]
     if p < V + F:
-        return 0.0, 0.0, 0.0
+        return c0, c1, c2
     k = _offsets(ix)[1] + 7 * (p - V - F)
     m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
     w0, w1, w2 = q0 - m0, q1 - m1, q2 - m2
@@ -108,81 +108,139 @@ def torus_far_normal(f, ix, p, q0, q1, q2, toward):
     w0, w1, w2 = w0 - we * e0, w1 - we * e1, w2 - we * e2
     wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     if wn == 0.0:
-        return 0.0, 0.0, 0.0
-    c0, c1, c2 = m0 - a * w0 / wn, m1 - a * w1 / wn, m2 - a * w2 / wn
-    d0, d1, d2 = q0 - c0, q1 - c1, q2 - c2
-    dn = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    s = 1.0 / dn if toward else -1.0 / dn
-    return d0 * s, d1 * s, d2 * s
+        return c0, c1, c2
+    return m0 - a * w0 / wn, m1 - a * w1 / wn, m2 - a * w2 / wn
 
 
 @kernel
-def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, out):
+def _to_a(R, t, x0, x1, x2):
+    return (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0], R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1],
+            R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2])
+
+
+@kernel
+def _to_b(R, t, x0, x1, x2):
+    y0, y1, y2 = x0 - t[0], x1 - t[1], x2 - t[2]
+    return (R[0, 0] * y0 + R[1, 0] * y1 + R[2, 0] * y2, R[0, 1] * y0 + R[1, 1] * y1 + R[2, 1] * y2,
+            R[0, 2] * y0 + R[1, 2] * y1 + R[2, 2] * y2)
+
+
+@kernel
+def _rot_to_b(R, x0, x1, x2):
+    return (R[0, 0] * x0 + R[1, 0] * x1 + R[2, 0] * x2, R[0, 1] * x0 + R[1, 1] * x1 + R[2, 1] * x2,
+            R[0, 2] * x0 + R[1, 2] * x1 + R[2, 2] * x2)
+
+
+@kernel
+def _support_of_side(k, f, ix, p, d0, d1, d2, warm, slot, out):
+    """Core support along d (local frame) into out; for an STP-BV, patch p's if p owns d."""
+    if k == STP and p >= 0:
+        n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        u0, u1, u2 = d0 / n, d1 / n, d2 / n
+        if in_region(f, ix, _offsets(ix)[2], p, u0, u1, u2):
+            patch_support(f, ix, p, u0, u1, u2, out)
+            return
+    warm[slot] = support_local(k, f, ix, d0, d1, d2, warm[slot], out)
+
+
+BALL_ALTERNATIONS = 60  # far-point alternations between two tori; each shrinks the error about 4x
+
+
+@kernel
+def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
+                      iscratch, fscratch, out):
     """Try to settle the query on the balls of the STP patches facing along n (A's frame, A to B).
 
-    Each round solves the ball-centre problem exactly, then certifies with the bodies' own supports
-    along the new normal m: upper = |p_B - p_A| for points on the bodies, lower = the width of the
-    slab between the support planes with normal m. Writes the result into out (A's frame) and
-    returns the descent iterations used, or -1 if no round closed the gap."""
-    work = np.empty((WORK_ROWS, 4))
-    inner_warm = np.zeros(warm.shape[0], dtype=np.int64)
-    ident = np.eye(3)
-    tb = np.empty(3)
-    d = np.empty(3)
-    sa = np.empty(3)
-    sb = np.empty(3)
-    tmp = np.empty(3)
+    Each round takes the facing patches (one guided-march step from the last ones), solves the
+    problem between their balls (closed form between two balls; an exact GJK between a ball centre
+    and a polytope), and certifies with the bodies' own supports along the new normal m: upper =
+    |p_B - p_A| for points on the bodies, lower = the width of the slab between the support planes.
+    Writes the result into out (A's frame) and returns the descent iterations used, or -1 if no
+    round closed the gap. work: (WORK_ROWS, 4) scratch for the inner descent; iscratch: int64
+    (WARM_SIZE,) and fscratch: (4, 3) scratch of this function's own."""
     used = 0
     pa = pb = -1
+    sa = fscratch[0]
+    sb = fscratch[1]
+    tmp = fscratch[2]
+    dirv = fscratch[3]
     for _ in range(FINISH_ROUNDS):
-        # side A: the facing patch's ball becomes a point at its centre with the radius as margin
-        ca0 = ca1 = ca2 = 0.0
-        core_a, margin_a = kA, mA
+        ca0 = ca1 = ca2 = cb0 = cb1 = cb2 = 0.0
+        margin_a = margin_b = 0.0
         if kA == STP:
             pa = next_patch(fA, iA, pa, n0, n1, n2)
             ca0, ca1, ca2, margin_a = ball_of_patch(fA, iA, pa, n0, n1, n2)
             warm[0] = pa
-            core_a = POINT
-        # side B, in A's frame shifted to A's ball centre
-        core_b, margin_b = kB, mB
-        rot = R
-        for r in range(3):
-            tb[r] = t[r]
+        e0, e1, e2 = _rot_to_b(R, -n0, -n1, -n2)
         if kB == STP:
-            e0 = -(R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2)
-            e1 = -(R[0, 1] * n0 + R[1, 1] * n1 + R[2, 1] * n2)
-            e2 = -(R[0, 2] * n0 + R[1, 2] * n1 + R[2, 2] * n2)
             pb = next_patch(fB, iB, pb, e0, e1, e2)
             cb0, cb1, cb2, margin_b = ball_of_patch(fB, iB, pb, e0, e1, e2)
             warm[1] = pb
-            core_b = POINT
-            rot = ident
-            for r in range(3):
-                tb[r] = R[r, 0] * cb0 + R[r, 1] * cb1 + R[r, 2] * cb2 + t[r]
-        tb[0] -= ca0
-        tb[1] -= ca1
-        tb[2] -= ca2
-        d[0], d[1], d[2] = n0, n1, n2
-        inner_warm[:] = 0
-        status, k, v0, v1, v2, vv, lower, it = descend(core_a, fA, iA, core_b, fB, iB, rot, tb, tol_abs, tol_rel,
-                                                       max_iter, d, inner_warm, work)
-        used += it
-        if status != SEPARATED:
-            return -1
-        _finish(status, k, work[12], work[4:8, 0:3], work[8:12, 0:3], v0, v1, v2, vv, lower, it, margin_a,
-                margin_b, tol_abs, d, out)
-        if out[OUT_STATUS] != SEPARATED:
-            return -1
-        m0, m1, m2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
-        # certificate from the true supports along m
-        minkowski_support(kA, fA, iA, kB, fB, iB, R, t, m0, m1, m2, warm, sa, sb, tmp)
+        k = 0  # the ball-ball case has no core simplex
+        if kA == STP and kB == STP:
+            # two balls: alternate the tori's far points, then the normal joins the centres
+            qa0, qa1, qa2 = _to_b(R, t, ca0, ca1, ca2)
+            for _ in range(BALL_ALTERNATIONS):
+                cb0n, cb1n, cb2n = far_ball_centre(fB, iB, pb, cb0, cb1, cb2, qa0, qa1, qa2)
+                x0, x1, x2 = _to_a(R, t, cb0n, cb1n, cb2n)
+                ca0n, ca1n, ca2n = far_ball_centre(fA, iA, pa, ca0, ca1, ca2, x0, x1, x2)
+                moved = abs(ca0n - ca0) + abs(ca1n - ca1) + abs(ca2n - ca2) + abs(cb0n - cb0) + abs(cb1n - cb1) \
+                    + abs(cb2n - cb2)
+                ca0, ca1, ca2, cb0, cb1, cb2 = ca0n, ca1n, ca2n, cb0n, cb1n, cb2n
+                qa0, qa1, qa2 = _to_b(R, t, ca0, ca1, ca2)
+                if moved <= 1e-15:
+                    break
+            x0, x1, x2 = _to_a(R, t, cb0, cb1, cb2)
+            g0, g1, g2 = x0 - ca0, x1 - ca1, x2 - ca2
+            gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+            if gn <= margin_a + margin_b + tol_abs:
+                return -1
+            m0, m1, m2 = g0 / gn, g1 / gn, g2 / gn
+        else:
+            # a ball centre against the other body's core, exactly by GJK (shifted to the centre)
+            core_a, margin_a2, core_b, margin_b2 = kA, mA, kB, mB
+            tb0, tb1, tb2 = t[0], t[1], t[2]
+            if kA == STP:
+                core_a, margin_a2 = POINT, margin_a
+            else:
+                core_b, margin_b2 = POINT, margin_b
+                tb0, tb1, tb2 = _to_a(R, t, cb0, cb1, cb2)
+            tmp[0], tmp[1], tmp[2] = tb0 - ca0, tb1 - ca1, tb2 - ca2
+            dirv[0], dirv[1], dirv[2] = n0, n1, n2
+            iscratch[:] = 0
+            status, k, v0, v1, v2, vv, lower, it = descend(core_a, fA, iA, core_b, fB, iB, R, tmp, tol_abs, tol_rel,
+                                                           max_iter, dirv, iscratch, work)
+            used += it
+            if status != SEPARATED or math.sqrt(vv) <= margin_a2 + margin_b2 + tol_abs:
+                return -1
+            m0, m1, m2 = -v0 / math.sqrt(vv), -v1 / math.sqrt(vv), -v2 / math.sqrt(vv)
+            # the polytope side's witness: the descent's convex combination, back in A's frame
+            for c in range(3):
+                acc_a = 0.0
+                acc_b = 0.0
+                for i in range(k):
+                    acc_a += work[12, i] * work[4 + i, c]
+                    acc_b += work[12, i] * work[8 + i, c]
+                out[OUT_POINT_A + c] = acc_a + (ca0, ca1, ca2)[c]
+                out[OUT_POINT_B + c] = acc_b + (ca0, ca1, ca2)[c]
+            if kA != STP:
+                for c in range(3):
+                    out[OUT_POINT_A + c] += mA * (m0, m1, m2)[c]
+            if kB != STP:
+                for c in range(3):
+                    out[OUT_POINT_B + c] -= mB * (m0, m1, m2)[c]
+        # certificate from the true supports along m (an STP side's patch gives it at once if it owns m)
+        _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa)
+        e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
+        _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp)
+        sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
         for c in range(3):
             sa[c] += mA * (m0, m1, m2)[c]
             sb[c] -= mB * (m0, m1, m2)[c]
-            pa_c = sa[c] if kA == STP else out[OUT_POINT_A + c] + (ca0, ca1, ca2)[c]
-            pb_c = sb[c] if kB == STP else out[OUT_POINT_B + c] + (ca0, ca1, ca2)[c]
-            out[OUT_POINT_A + c] = pa_c
-            out[OUT_POINT_B + c] = pb_c
+            if kA == STP:
+                out[OUT_POINT_A + c] = sa[c]
+            if kB == STP:
+                out[OUT_POINT_B + c] = sb[c]
         gx = out[OUT_POINT_B] - out[OUT_POINT_A]
         gy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
         gz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
@@ -194,31 +252,30 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             out[OUT_NORMAL] = gx / upper
             out[OUT_NORMAL + 1] = gy / upper
             out[OUT_NORMAL + 2] = gz / upper
+            out[OUT_STATUS] = TOUCHING if upper <= tol_abs else SEPARATED
             return used
-        # next normal: towards the facing torus's best ball when the other side's feature is a point
         n0, n1, n2 = m0, m1, m2
-        if kA == STP and (core_b == POINT or k == 1):
-            q0 = (tb[0] if core_b == POINT else work[8, 0]) + ca0
-            q1 = (tb[1] if core_b == POINT else work[8, 1]) + ca1
-            q2 = (tb[2] if core_b == POINT else work[8, 2]) + ca2
-            x0, x1, x2 = torus_far_normal(fA, iA, pa, q0, q1, q2, True)
-            if x0 != 0.0 or x1 != 0.0 or x2 != 0.0:
-                n0, n1, n2 = x0, x1, x2
-        if kB == STP and (core_a == POINT or k == 1):
-            # A's feature point, in B's local frame
-            a0 = ca0 if core_a == POINT else work[4, 0]
-            a1 = ca1 if core_a == POINT else work[4, 1]
-            a2 = ca2 if core_a == POINT else work[4, 2]
-            y0, y1, y2 = a0 - t[0], a1 - t[1], a2 - t[2]
-            l0 = R[0, 0] * y0 + R[1, 0] * y1 + R[2, 0] * y2
-            l1 = R[0, 1] * y0 + R[1, 1] * y1 + R[2, 1] * y2
-            l2 = R[0, 2] * y0 + R[1, 2] * y1 + R[2, 2] * y2
-            x0, x1, x2 = torus_far_normal(fB, iB, pb, l0, l1, l2, False)
-            if x0 != 0.0 or x1 != 0.0 or x2 != 0.0:
-                # B's normal -> A's frame: the direction from A's point to B's ball
-                n0 = R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2
-                n1 = R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2
-                n2 = R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2
+        if k == 1:
+            # against a polytope vertex q: a torus's best ball is centred at its circle point farthest
+            # from q, in closed form (measured: for edge and face witnesses the plain normal update
+            # converges faster)
+            if kA == STP:
+                q0 = out[OUT_POINT_B] + mB * m0
+                q1 = out[OUT_POINT_B + 1] + mB * m1
+                q2 = out[OUT_POINT_B + 2] + mB * m2
+                c0, c1, c2 = far_ball_centre(fA, iA, pa, ca0, ca1, ca2, q0, q1, q2)
+                g0, g1, g2 = q0 - c0, q1 - c1, q2 - c2
+            else:
+                q0 = out[OUT_POINT_A] - mA * m0
+                q1 = out[OUT_POINT_A + 1] - mA * m1
+                q2 = out[OUT_POINT_A + 2] - mA * m2
+                l0, l1, l2 = _to_b(R, t, q0, q1, q2)
+                c0, c1, c2 = far_ball_centre(fB, iB, pb, cb0, cb1, cb2, l0, l1, l2)
+                x0, x1, x2 = _to_a(R, t, c0, c1, c2)
+                g0, g1, g2 = x0 - q0, x1 - q1, x2 - q2
+            gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+            if gn > 0.0:
+                n0, n1, n2 = g0 / gn, g1 / gn, g2 / gn
     return -1
 
 
@@ -249,17 +306,19 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     """
     extra = 0
     if kA == STP or kB == STP:
+        scratch = np.zeros(warm.shape[0], dtype=np.int64)
+        fscratch = np.empty((4, 3))
         n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
         if n > 0.0:  # coherence: the patches that faced each other last time
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
-                                     dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, out)
+                                     dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, work, scratch, fscratch, out)
             if used >= 0:
                 return _done(out, used, dir_io)
         ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
         kb, mb, fb, ib = hull_core(kB, mB, fB, iB)
-        hull_warm = np.zeros(warm.shape[0], dtype=np.int64)
+        scratch[:] = 0
         status, k, v0, v1, v2, vv, lower, it = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs,
-                                                       max(tol_rel, LOOSE_REL_TOL), max_iter, dir_io, hull_warm, work)
+                                                       max(tol_rel, LOOSE_REL_TOL), max_iter, dir_io, scratch, work)
         extra = it
         gap = math.sqrt(vv) - ma - mb
         if status == OVERLAPPING or (status != FAILED and gap < -tol_abs):
@@ -270,7 +329,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         if status == SEPARATED and vv > 0.0:
             n = math.sqrt(vv)
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -v0 / n, -v1 / n, -v2 / n, tol_abs,
-                                     tol_rel, max_iter, warm, out)
+                                     tol_rel, max_iter, warm, work, scratch, fscratch, out)
             if used >= 0:
                 return _done(out, used + extra, dir_io)
             dir_io[0], dir_io[1], dir_io[2] = -v0, -v1, -v2
