@@ -90,6 +90,32 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_support_scaling(args) -> int:
+    from datasets import load_object
+    from harness import stp_scaling as sc
+    from harness.report.meta import run_metadata
+    from harness.report.tables import write_table
+
+    config = sc.ScalingConfig(object_name=args.object, r=args.r, R_values=tuple(args.R_values or ()) or None,
+                              directions=args.directions, seed=args.seed, repeats=args.repeats)
+    table = sc.run(config, lambda name: load_object(name).vertices, progress=not args.quiet)
+    slopes = sc.loglog_slopes(table)
+    out = Path(args.out)
+    meta = run_metadata(command="spq bench support", seed=args.seed, directions=args.directions, r=args.r)
+    notes = (f"Time per STP-BV support call on {args.object} ({table.points.iloc[0]} hull points), r = {args.r} m, "
+             "R varied to vary the feature count. cold: random directions, no warm start; warm: a smooth path "
+             "of directions, each search starting from the previous patch. Slopes of log(time) against "
+             "log(features): 1 is linear, 0.5 is the paper's O(sqrt n).")
+    write_table(table, out, "support_scaling", "STP-BV support scaling (paper Fig. 6 and 7)", meta, notes)
+    write_table(slopes, out, "support_scaling_slopes", "Support scaling: log-log slopes", meta)
+    sc.plot(table, out / "support_scaling.png")
+    _print(table[["R", "features", "method", "mode", "ns_per_call", "mean_steps"]])
+    print()
+    _print(slopes)
+    print(f"\nwrote {out}/support_scaling.csv, .md, .png and support_scaling_slopes.*")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spq", description="Smooth Proximity Queries: measurements.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -103,6 +129,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=str(DEFAULT_OUT), help="output folder (default: reports)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_crosscheck)
+
+    p = sub.add_parser("bench-support", help="STP-BV support time against feature count (paper Fig. 6/7)")
+    p.add_argument("--object", default="kuka_link_1", help="dataset name or mesh path (default: kuka_link_1, 574 points)")
+    p.add_argument("--r", type=float, default=0.005)
+    p.add_argument("--R-values", type=float, nargs="+", dest="R_values",
+                   help="big radii (m); default: 1.0001 to 300 times the smallest admissible R - r, plus r")
+    p.add_argument("--directions", type=int, default=20000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_support_scaling)
 
     p = sub.add_parser("bench", help="throughput benchmarks")
     p.add_argument("suite", choices=["pch", "stp"],

@@ -1,8 +1,9 @@
 """Support-function scaling (the paper's Fig. 6 and 7): time per STP-BV support call against the
 feature count, for the naive scan, the guided march and the hull-accelerated search, cold and warm.
 
-The feature count is varied, as in the paper, by changing R on one link: a larger R gives flatter
-big spheres, hence more faces, edges and vertices on the ball hull. Cold calls take uniformly random
+The feature count is varied, as in the paper, by changing R on one link: from just above the smallest
+admissible R (a few patches: the hull is nearly the enclosing sphere) to R hundreds of times larger
+(flat big spheres: nearly every hull vertex, edge and face becomes a patch). Cold calls take uniformly random
 directions with no warm start; warm calls follow a smooth path of directions, each call starting
 from the previous call's patch (temporal coherence).
 """
@@ -24,7 +25,8 @@ from spq.shapes.stpbv import STPBV
 class ScalingConfig:
     object_name: str = "kuka_link_1"
     r: float = 0.005
-    R_values: tuple = (0.12, 0.15, 0.2, 0.3, 0.5, 1.0, 2.0, 5.0, 20.0, 100.0)
+    R_values: tuple | None = None  # metres; None: R_FACTORS times the smallest admissible R - r, plus r
+    R_factors: tuple = (1.0001, 1.001, 1.01, 1.03, 1.1, 1.3, 2.0, 4.0, 10.0, 50.0, 300.0)
     directions: int = 20000
     seed: int = 0
     repeats: int = 3
@@ -55,12 +57,15 @@ def run(config: ScalingConfig, load_points, progress: bool = True) -> pd.DataFra
     """One row per (R, method, mode): feature counts, ns per support call, mean search steps."""
     from tqdm import tqdm
 
+    from spq.stp.construction import enclosing_radius
+
     points = load_points(config.object_name)
+    R_values = config.R_values or tuple(config.r + enclosing_radius(points) * f for f in config.R_factors)
     rng = np.random.default_rng(config.seed)
     cold = rng.normal(size=(config.directions, 3))
     warm = smooth_directions(config.directions, config.seed)
     rows = []
-    for R in tqdm(config.R_values, desc="support scaling", unit="R", disable=not progress):
+    for R in tqdm(R_values, desc="support scaling", unit="R", disable=not progress):
         try:
             stp = STPBV.from_points(points, config.r, R)
         except ValueError as exc:  # R below the cloud's feasibility bound
@@ -100,12 +105,12 @@ def plot(table: pd.DataFrame, path) -> None:
         ax.plot(g.features, g.ns_per_call, marker="o", color=styles[method],
                 linestyle="-" if mode == "cold" else "--", label=f"{method}, {mode}")
     f = np.array(sorted(table.features.unique()), dtype=float)
-    if len(f) >= 2:
-        ref = table[(table.method == "naive") & (table.mode == "cold")].sort_values("features")
-        if len(ref):
-            ax.plot(f, ref.ns_per_call.iloc[0] * f / f[0], color="grey", linewidth=0.8, label="∝ n (linear)")
-            ax.plot(f, ref.ns_per_call.iloc[0] * np.sqrt(f / f[0]) * 0.2, color="grey", linestyle=":",
-                    linewidth=0.8, label="∝ √n")
+    naive = table[(table.method == "naive") & (table["mode"] == "cold")].sort_values("features")
+    march = table[(table.method == "march") & (table["mode"] == "cold")].sort_values("features")
+    if len(f) >= 2 and len(naive) and len(march):
+        ax.plot(f, naive.ns_per_call.iloc[0] * f / f[0], color="grey", linewidth=0.8, label="∝ n (reference)")
+        ax.plot(f, march.ns_per_call.iloc[0] * np.sqrt(f / f[0]), color="grey", linestyle=":", linewidth=1.0,
+                label="∝ √n (reference)")
     obj = table.object.iloc[0]
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -150,7 +150,8 @@ def find_patch(f, ix, method, start, u0, u1, u2):
     """(patch, steps) owning unit direction u, by METHOD_NAIVE, METHOD_MARCH or METHOD_HULL."""
     o_faces, o_tori, o_bound, o_hull = _offsets(ix)
     if method == METHOD_NAIVE:
-        return find_naive(f, ix, o_bound, u0, u1, u2), ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
+        p = find_naive(f, ix, o_bound, u0, u1, u2)
+        return p, p + 1  # patches scanned
     if method == METHOD_MARCH:
         return find_march(f, ix, o_bound, start, u0, u1, u2)
     return find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2)

@@ -78,29 +78,13 @@ def build_topology(points, r: float, R: float) -> STPTopology:
     R too small to enclose the points (the message gives the smallest admissible R).
     """
     x, r, R = _validated(points, r, R)
-    unique, source = merge_duplicates(x, MERGE_TOL)
-    if len(unique) < 2:
-        raise ValueError(f"points need at least 2 distinct points; got {len(unique)} "
-                         f"(from {len(x)} rows)")
     rho = R - r
-    origin = unique.mean(axis=0)
-    p = unique - origin
-    scale = float(np.linalg.norm(np.ptp(p, axis=0)))
-    frame, extent = _principal_frame(p)
-    rank = int((extent > FLAT_TOL * scale).sum())
-
+    unique, source, origin, p, scale, frame, rank = _prepared(x)
     if rank == 1:
         pair = np.sort([np.argmin(p @ frame[0]), np.argmax(p @ frame[0])])  # the two ends
-        r_meb = 0.5 * float(np.linalg.norm(p[pair[0]] - p[pair[1]]))
-        _check_feasible(r, rho, r_meb, scale)
+        _check_feasible(r, rho, 0.5 * float(np.linalg.norm(p[pair[0]] - p[pair[1]])), scale)
         return _spindle(unique[pair], source[pair], r, R)
-
-    ctx = _Context(p=p, rho=rho, scale=scale)
-    if rank == 2:
-        cand = _planar_candidates(ctx, frame)
-    else:
-        cand = _solid_candidates(ctx)
-    r_meb = _enclosing_radius(ctx, cand)
+    ctx, cand, r_meb = _candidates_and_radius(p, scale, frame, rank, rho)
     _check_feasible(r, rho, r_meb, scale)
 
     faces, centres, on_sphere = _faces(ctx, cand)
@@ -119,6 +103,37 @@ def build_topology(points, r: float, R: float) -> STPTopology:
     return STPTopology(r=r, R=R, vertices=unique[used], faces=remap[faces],
                        face_centres=centres + origin, edges=remap[edges], edge_faces=edge_faces,
                        edge_real=edge_real, source_index=source[used])
+
+
+def enclosing_radius(points) -> float:
+    """Radius of the smallest ball enclosing the points (their units): an STP-BV of them exists
+    exactly when R - r is at least this."""
+    x = as_points(points, "points", min_count=1)
+    unique, source, origin, p, scale, frame, rank = _prepared(x)
+    if len(unique) < 2:
+        return 0.0
+    if rank == 1:
+        return 0.5 * float(np.ptp(p @ frame[0]))
+    return _candidates_and_radius(p, scale, frame, rank, np.inf)[2]
+
+
+def _prepared(x: np.ndarray):
+    """Distinct points centred on their mean, their size, principal frame and affine rank."""
+    unique, source = merge_duplicates(x, MERGE_TOL)
+    if len(unique) < 2:
+        raise ValueError(f"points need at least 2 distinct points; got {len(unique)} (from {len(x)} rows)")
+    origin = unique.mean(axis=0)
+    p = unique - origin
+    scale = float(np.linalg.norm(np.ptp(p, axis=0)))
+    frame, extent = _principal_frame(p)
+    rank = int((extent > FLAT_TOL * scale).sum())
+    return unique, source, origin, p, scale, frame, rank
+
+
+def _candidates_and_radius(p, scale, frame, rank, rho):
+    ctx = _Context(p=p, rho=rho, scale=scale)
+    cand = _planar_candidates(ctx, frame) if rank == 2 else _solid_candidates(ctx)
+    return ctx, cand, _enclosing_radius(ctx, cand)
 
 
 # ----------------------------------------------------------------------------------------- input
