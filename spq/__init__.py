@@ -1,7 +1,7 @@
 """spq: Smooth Proximity Queries.
 
-Convex shapes with support functions (polyhedral hull, primitives) and a certified GJK distance
-with witness points, single, per-pair with warm start, and batched.
+Convex shapes with support functions (polyhedral hull, STP-BV, primitives) and a certified GJK
+distance with witness points, single, per-pair with warm start, and batched.
 """
 
 from spq.kernels.gjk import STATUS_NAMES
@@ -18,10 +18,11 @@ from spq.query import (
 from spq.shapes.base import Shape
 from spq.shapes.polyhedron import Polyhedron
 from spq.shapes.primitives import Box, Capsule, Sphere
+from spq.shapes.stpbv import STPBV
 
 __version__ = "0.1.0"
 
 __all__ = [
     "STATUS_NAMES", "DEFAULT_MAX_ITER", "DEFAULT_TOL_ABS", "DEFAULT_TOL_REL", "BatchDistances",
-    "DistanceResult", "Pair", "distance", "distances", "Shape", "Polyhedron", "Box", "Capsule", "Sphere",
+    "DistanceResult", "Pair", "distance", "distances", "Shape", "Polyhedron", "Box", "Capsule", "Sphere", "STPBV",
 ]
