@@ -32,7 +32,7 @@ class BenchConfig:
     pairs: list[str] = field(default_factory=lambda: ["PCH-PCH"])
 
 
-def _best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
+def best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
     best, out = np.inf, None
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -50,7 +50,7 @@ def _timed_rows(pair, poses_a, poses_b, repeats: int) -> list[dict]:
     rows = []
     for mode, fn in modes:
         fn(poses_a[:8], poses_b[:8])
-        seconds, dist = _best_time(lambda: fn(poses_a, poses_b), repeats)
+        seconds, dist = best_time(lambda: fn(poses_a, poses_b), repeats)
         rows.append({"mode": mode, "queries": n, "seconds": seconds, "queries_per_s": n / seconds,
                      "overlapping": int(np.sum(np.asarray(dist) <= 0.0))})
     return rows

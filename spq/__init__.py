@@ -1,6 +1,6 @@
 """spq: Smooth Proximity Queries.
 
-Convex shapes with support functions (polyhedral hull, STP-BV, primitives) and a certified GJK
+Convex shapes with support functions (polyhedral hull, STP-BV, superellipsoid, primitives) and a certified GJK
 distance with witness points, single, per-pair with warm start, and batched.
 """
 
@@ -19,10 +19,12 @@ from spq.shapes.base import Shape
 from spq.shapes.polyhedron import Polyhedron
 from spq.shapes.primitives import Box, Capsule, Sphere
 from spq.shapes.stpbv import STPBV
+from spq.shapes.superellipsoid import Ellipsoid, FitResult, Superellipsoid
 
 __version__ = "0.1.0"
 
 __all__ = [
     "STATUS_NAMES", "DEFAULT_MAX_ITER", "DEFAULT_TOL_ABS", "DEFAULT_TOL_REL", "BatchDistances",
     "DistanceResult", "Pair", "distance", "distances", "Shape", "Polyhedron", "Box", "Capsule", "Sphere", "STPBV",
+    "Superellipsoid", "Ellipsoid", "FitResult",
 ]

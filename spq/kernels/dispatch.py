@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from spq.kernels.jit import kernel
-from spq.kernels.kinds import BOX, POLYTOPE, SEGMENT, STP
+from spq.kernels.kinds import BOX, POLYTOPE, SEGMENT, STP, SUPERELLIPSOID
 from spq.kernels.stp_support import IDX_METHOD, stp_support
+from spq.kernels.superellipsoid_support import superellipsoid_support
 from spq.kernels.support import polytope_support_index
 
 
@@ -40,6 +41,9 @@ def support_local(kind, f, ix, d0, d1, d2, warm, out):
         return 0
     if kind == STP:
         return stp_support(f, ix, ix[IDX_METHOD], d0, d1, d2, warm, out)
+    if kind == SUPERELLIPSOID:
+        superellipsoid_support(f, d0, d1, d2, out)
+        return 0
     if kind == SEGMENT:
         out[0] = 0.0
         out[1] = 0.0

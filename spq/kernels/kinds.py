@@ -10,6 +10,9 @@ a ball added to the core, in metres), and two flat arrays whose layout the kind 
 - BOX: fdata = half extents (hx, hy, hz); idata unused.
 - POINT: the origin (a Sphere is a POINT with its radius as margin); fdata, idata unused.
 - SEGMENT: fdata = (half_length,) along the local z axis (a Capsule is a SEGMENT with a margin).
+- SUPERELLIPSOID: fdata = (a, b, c, e1, e2, q1, q2, q1 - 1, q2 - 1, 1/q1 - 1, 1/q2 - 1): semi-axes (m),
+  exponents in (0, 2] and their dual-norm exponents q = 2/(2 - e) (inf for e = 2), precomputed;
+  idata unused; margin 0. Offsets and packing in kernels/superellipsoid_support.py.
 """
 
 POLYTOPE = 0
@@ -17,6 +20,7 @@ BOX = 1
 POINT = 2
 SEGMENT = 3
 STP = 4  # sphere-torus-patch bounding volume: layout in kernels/stp_support.py
+SUPERELLIPSOID = 5  # convex superellipsoid (CSE-BV): layout above and in kernels/superellipsoid_support.py
 
 CUBE_MAP_CELLS = 8  # G: cells per cube-map face edge; 6 * 8 * 8 = 384 start vertices
 BRUTE_FORCE_MAX_VERTICES = 32  # below this a linear scan beats hill climbing (NOTES section 5)

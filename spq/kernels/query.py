@@ -47,6 +47,7 @@ from spq.kernels.stp_support import (
     IDX_METHOD,
     IDX_V,
     _offsets,
+    ball_of_patch,
     find_patch,
     in_region,
     march_step,
@@ -55,28 +56,6 @@ from spq.kernels.stp_support import (
 
 LOOSE_REL_TOL = 1e-3  # relative tolerance of the first descent, which only has to find the patches
 FINISH_ROUNDS = 8  # patch-pair corrections before falling back to the full descent
-
-
-@kernel
-def ball_of_patch(f, ix, p, d0, d1, d2):
-    """(ball centre x, y, z, ball radius) whose support is patch p's along directions d in its region:
-    a small or big sphere, or for a torus the big ball centred at the circle point opposite d."""
-    V, F = ix[IDX_V], ix[IDX_F]
-    o_faces, o_tori, o_bound, o_hull = _offsets(ix)
-    if p < V:
-        k = F_VERTICES + 3 * p
-        return f[k], f[k + 1], f[k + 2], f[F_R]
-    if p < V + F:
-        k = o_faces + 3 * (p - V)
-        return f[k], f[k + 1], f[k + 2], f[F_BIG_R]
-    k = o_tori + 7 * (p - V - F)
-    e0, e1, e2, a = f[k + 3], f[k + 4], f[k + 5], f[k + 6]
-    de = d0 * e0 + d1 * e1 + d2 * e2
-    w0, w1, w2 = d0 - de * e0, d1 - de * e1, d2 - de * e2
-    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    if wn > 0.0:
-        w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
-    return f[k] - a * w0, f[k + 1] - a * w1, f[k + 2] - a * w2, f[F_BIG_R]
 
 
 @kernel

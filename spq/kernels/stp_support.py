@@ -158,35 +158,34 @@ def find_patch(f, ix, method, start, u0, u1, u2):
 
 
 @kernel
-def patch_support(f, ix, p, u0, u1, u2, out):
-    """Support point of patch p along unit u into out[0:3]."""
+def ball_of_patch(f, ix, p, d0, d1, d2):
+    """(ball centre x, y, z, ball radius) whose support is patch p's along directions d in its region:
+    a small or big sphere, or for a torus the big ball centred at the circle point opposite d."""
     V, F = ix[IDX_V], ix[IDX_F]
     o_faces, o_tori, o_bound, o_hull = _offsets(ix)
     if p < V:
         k = F_VERTICES + 3 * p
-        rad = f[F_R]
-        out[0] = f[k] + rad * u0
-        out[1] = f[k + 1] + rad * u1
-        out[2] = f[k + 2] + rad * u2
-    elif p < V + F:
+        return f[k], f[k + 1], f[k + 2], f[F_R]
+    if p < V + F:
         k = o_faces + 3 * (p - V)
-        rad = f[F_BIG_R]
-        out[0] = f[k] + rad * u0
-        out[1] = f[k + 1] + rad * u1
-        out[2] = f[k + 2] + rad * u2
-    else:
-        # torus: the point of the centre circle opposite u, plus the big sphere's support
-        k = o_tori + 7 * (p - V - F)
-        e0, e1, e2, a = f[k + 3], f[k + 4], f[k + 5], f[k + 6]
-        ue = u0 * e0 + u1 * e1 + u2 * e2
-        w0, w1, w2 = u0 - ue * e0, u1 - ue * e1, u2 - ue * e2
-        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        if wn > 0.0:
-            w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
-        rad = f[F_BIG_R]
-        out[0] = f[k] - a * w0 + rad * u0
-        out[1] = f[k + 1] - a * w1 + rad * u1
-        out[2] = f[k + 2] - a * w2 + rad * u2
+        return f[k], f[k + 1], f[k + 2], f[F_BIG_R]
+    k = o_tori + 7 * (p - V - F)
+    e0, e1, e2, a = f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+    de = d0 * e0 + d1 * e1 + d2 * e2
+    w0, w1, w2 = d0 - de * e0, d1 - de * e1, d2 - de * e2
+    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if wn > 0.0:
+        w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
+    return f[k] - a * w0, f[k + 1] - a * w1, f[k + 2] - a * w2, f[F_BIG_R]
+
+
+@kernel
+def patch_support(f, ix, p, u0, u1, u2, out):
+    """Support point of patch p along unit u into out[0:3]: its ball's, centre + radius u."""
+    c0, c1, c2, rad = ball_of_patch(f, ix, p, u0, u1, u2)
+    out[0] = c0 + rad * u0
+    out[1] = c1 + rad * u1
+    out[2] = c2 + rad * u2
 
 
 @kernel
