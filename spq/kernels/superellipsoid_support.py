@@ -86,7 +86,13 @@ def superellipsoid_support(f, d0, d1, d2, out):
     u0 = f[F_A] * (a0 * inv)
     u1 = f[F_B] * (a1 * inv)
     u2 = f[F_C] * (a2 * inv)
-    # inner norm m = ||(u0, u1)||_q2 and its gradient (w0, w1), both entries in [0, 1]
+    if f[F_E1] == 1.0 and f[F_E2] == 1.0:  # ellipsoid: q = 2, s = diag(a, b, c) u / |u|
+        k = 1.0 / math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        out[0] = math.copysign(f[F_A] * u0 * k, d0)
+        out[1] = math.copysign(f[F_B] * u1 * k, d1)
+        out[2] = math.copysign(f[F_C] * u2 * k, d2)
+        return
+    # inner norm m = ||(u0, u1)||_q2 = mx S^(1/q2), S = 1 + rho^q2, with gradient (w0, w1) in [0, 1]^2
     mx = max(u0, u1)
     if mx > 0.0:
         if u0 >= u1:
@@ -95,22 +101,30 @@ def superellipsoid_support(f, d0, d1, d2, out):
         else:
             p, pm1 = _minor_powers(u0 / mx, f[F_Q2], f[F_Q2M1])
             w0, w1 = pm1, 1.0
-        g = math.exp(f[F_H2] * math.log1p(p)) if p > 0.0 else 1.0  # S^(1/q2 - 1), S = 1 + p in [1, 2]
-        m = mx * (1.0 + p) * g  # mx * S^(1/q2)
-        w0 *= g
-        w1 *= g
+        ls = math.log1p(p)  # log S, in [0, log 2]
+        if p > 0.0:
+            g = math.exp(f[F_H2] * ls)  # S^(1/q2 - 1)
+            w0 *= g
+            w1 *= g
+        # outer norm h = ||(m, u2)||_q1: the ratio of its entries in the log domain, where
+        # log(u2 / m) = log(u2 / mx) - log(S) / q2 needs no power of S (and no wait for it)
+        if u2 > 0.0:
+            lr = math.log(u2 / mx) - ls * (f[F_H2] + 1.0)
+            if lr == 0.0:  # a tie (also q1 = inf, where inf * 0 would be NaN)
+                p, wm, wz = 1.0, 1.0, 1.0
+            elif lr < 0.0:
+                p = math.exp(f[F_Q1] * lr)
+                wm, wz = 1.0, math.exp(f[F_Q1M1] * lr)
+            else:
+                p = math.exp(-f[F_Q1] * lr)
+                wm, wz = math.exp(-f[F_Q1M1] * lr), 1.0
+        else:
+            p, wm, wz = 0.0, 1.0, 0.0
     else:
-        m = 0.0
+        p, wm, wz = 0.0, 0.0, 1.0
         w0 = w1 = 0.0
-    # outer norm h = ||(m, u2)||_q1: gradient (wm, wz)
-    if m >= u2:  # m > 0 here, since some u is > 0
-        p, pm1 = _minor_powers(u2 / m, f[F_Q1], f[F_Q1M1])
-        wm, wz = 1.0, pm1
-    else:
-        p, pm1 = _minor_powers(m / u2, f[F_Q1], f[F_Q1M1])
-        wm, wz = pm1, 1.0
     if p > 0.0:
-        g = math.exp(f[F_H1] * math.log1p(p))
+        g = math.exp(f[F_H1] * math.log1p(p))  # T^(1/q1 - 1), T = 1 + ratio^q1
         wm *= g
         wz *= g
     out[0] = math.copysign(f[F_A] * w0 * wm, d0)

@@ -35,11 +35,13 @@ E_MAX = 2.0  # largest exponent of a convex superellipsoid (the diamond / octahe
 FIT_E_BOUNDS = (0.1, 2.0)  # exponents the fit searches: below 0.1, F has powers > 20 and is ill-conditioned
 MVEE_TOL = 1e-7  # Khachiyan stop: max_i q_i^T X^-1 q_i <= (d + 1)(1 + tol), dimensionless
 MVEE_MAX_ITER = 100_000
+MVEE_REFRESH = 200  # Khachiyan steps between exact recomputations of X^-1 (rank-one updates drift)
 FLAT_VOLUME = 1e-9  # hull volume / extent^3 below which a cloud is treated as flat (dimensionless)
 REPAIR_SLACK = 1e-13  # relative inflation added to the repair scale so rounding leaves max F <= 1
 FIT_MAX_F = 1.0 + 1e-12  # what the fit guarantees for every input point: F(R^T (x - t)) <= FIT_MAX_F
 POSE_SHIFT_BOUND = 0.25  # fit: max centre shift per axis, in units of the mean MVEE semi-axis
 POSE_TURN_BOUND = 0.5  # fit: max rotation-vector component of the frame refinement (rad)
+AXIS_RANGE = (1e-2, 1e2)  # fit: semi-axes searched within these multiples of the MVEE's smallest / largest
 
 
 def as_exponent(value, name: str) -> float:
@@ -161,7 +163,8 @@ class Ellipsoid(Superellipsoid):
 
     @classmethod
     def fit(cls, points, e_bounds=None, refine_pose: bool = False) -> "FitResult":
-        """The minimum-volume enclosing ellipsoid of an (n, 3) cloud (m), as in Superellipsoid.fit."""
+        """The minimum-volume enclosing ellipsoid of an (n, 3) cloud (m), as in Superellipsoid.fit
+        (exponents fixed at 1, MVEE frame kept: ``e_bounds`` and ``refine_pose`` are ignored)."""
         return fit_superellipsoid(points, (1.0, 1.0), False, cls=cls)
 
 
@@ -262,32 +265,41 @@ def minimum_volume_ellipsoid(points: np.ndarray, tol: float = MVEE_TOL, max_iter
     """Minimum-volume enclosing ellipsoid of (n, 3) points (m), n >= 4 affinely independent.
 
     Khachiyan's barycentric coordinate ascent with Todd-Yildirim away steps (linear convergence),
-    vectorised. Returns (centre (3,), A (3, 3)) with (x - centre)^T A (x - centre) <= 1 + O(tol)
-    for every point; the caller repairs the O(tol) excess."""
+    vectorised, with rank-one (Sherman-Morrison) updates of X^-1 and of M_i = q_i^T X^-1 q_i,
+    refreshed exactly every MVEE_REFRESH steps. Stops when max M <= (d + 1)(1 + tol) and
+    min M over the support >= (d + 1)(1 - tol). Returns (centre (3,), A (3, 3)) with
+    (x - centre)^T A (x - centre) <= 1 + O(tol) for every point; the caller repairs the excess."""
     P = np.asarray(points, dtype=np.float64)
     n, d = P.shape
     Q = np.vstack([P.T, np.ones(n)])  # (d + 1, n)
     u = np.full(n, 1.0 / n)
-    for _ in range(max_iter):
-        X = (Q * u) @ Q.T
-        M = np.einsum("ij,ij->j", Q, np.linalg.solve(X, Q))  # q_i^T X^-1 q_i
+    target = d + 1.0
+    for it in range(max_iter):
+        if it % MVEE_REFRESH == 0:
+            Xi = np.linalg.inv((Q * u) @ Q.T)
+            M = np.einsum("ij,ij->j", Q, Xi @ Q)
         j = int(np.argmax(M))
-        active = np.flatnonzero(u > 0.0)
-        k = int(active[np.argmin(M[active])])
-        up = M[j] / (d + 1) - 1.0
-        down = 1.0 - M[k] / (d + 1)
+        k = int(np.argmin(np.where(u > 0.0, M, np.inf)))
+        up = M[j] / target - 1.0
+        down = 1.0 - M[k] / target
         if up <= tol and down <= tol:
             break
         if up >= down:
-            tau = (M[j] - d - 1.0) / ((d + 1) * (M[j] - 1.0))
-            u *= 1.0 - tau
-            u[j] += tau
-        else:  # away step: move weight off the point deepest inside
-            tau = max((M[k] - d - 1.0) / ((d + 1) * (M[k] - 1.0)), -u[k] / (1.0 - u[k]))
-            u *= 1.0 - tau
-            u[k] += tau
-            if u[k] <= 1e-300:
-                u[k] = 0.0
+            i = j
+            tau = (M[j] - target) / (target * (M[j] - 1.0))
+        else:  # away step: move weight off the point deepest inside, at most all of it
+            i = k
+            tau = max((M[k] - target) / (target * (M[k] - 1.0)), -u[k] / (1.0 - u[k]))
+        # X <- (1 - tau) X + tau q_i q_i^T
+        xq = Xi @ Q[:, i]
+        y = xq @ Q  # q_l^T X^-1 q_i for every l
+        den = 1.0 - tau + tau * M[i]
+        Xi = (Xi - (tau / den) * np.outer(xq, xq)) / (1.0 - tau)
+        M = (M - (tau / den) * y * y) / (1.0 - tau)
+        u *= 1.0 - tau
+        u[i] += tau
+        if u[i] < 1e-15:
+            u[i] = 0.0
     centre = P.T @ u
     cov = (P.T * u) @ P - np.outer(centre, centre)
     A = np.linalg.inv(cov) / d
@@ -391,14 +403,16 @@ def _solve_frame(V, t0, R0, axes0, e_start, e_bounds, refine_pose):
     theta0 = np.zeros(nvar)
     theta0[0:3] = np.log(axes)
     theta0[3:5] = e1, e2
-    bounds = [(None, None)] * 3 + [e_bounds] * 2
+    log_lo, log_hi = math.log(AXIS_RANGE[0] * min(axes0)), math.log(AXIS_RANGE[1] * max(axes0))
+    bounds = [(log_lo, log_hi)] * 3 + [e_bounds] * 2
     if refine_pose:
         bounds += [(-POSE_SHIFT_BOUND, POSE_SHIFT_BOUND)] * 3 + [(-POSE_TURN_BOUND, POSE_TURN_BOUND)] * 3
     res = minimize(prob.objective, theta0, jac=prob.objective_gradient, method="SLSQP", bounds=bounds,
                    constraints=[{"type": "ineq", "fun": prob.constraint, "jac": prob.constraint_jacobian}],
                    options={"maxiter": 300, "ftol": 1e-12})
-    theta = res.x if np.all(np.isfinite(res.x)) else theta0
+    theta = res.x if np.all(np.isfinite(res.x)) and np.isfinite(res.fun) else theta0
     theta[3:5] = np.clip(theta[3:5], *e_bounds)
+    theta[0:3] = np.clip(theta[0:3], log_lo, log_hi)
     t, R = prob.frame(theta)
     return t, R, np.exp(theta[0:3]), float(theta[3]), float(theta[4])
 
@@ -415,7 +429,9 @@ def fit_superellipsoid(points, e_bounds=FIT_E_BOUNDS, refine_pose: bool = True, 
     pts = as_points(points, "points", min_count=4)
     hull = _hull(pts)
     V = pts[hull.vertices]
-    centre, A = minimum_volume_ellipsoid(V)
+    origin = V.mean(axis=0)  # work near the cloud: the lifted (x, 1) system stays well conditioned
+    centre, A = minimum_volume_ellipsoid(V - origin)
+    centre = centre + origin
     lam, vecs = np.linalg.eigh(A)
     mvee_axes = 1.0 / np.sqrt(lam)
     fixed = e_bounds[0] == e_bounds[1]
@@ -430,8 +446,14 @@ def fit_superellipsoid(points, e_bounds=FIT_E_BOUNDS, refine_pose: bool = True, 
             R = _proper_rotation(Rotation.from_matrix(R).as_matrix())  # re-orthonormalised
             axes = _repair(pts, t, R, axes, e1, e2)
             logv = _log_volume(*axes, e1, e2)
+            if not (np.all(np.isfinite(axes)) and np.all(np.isfinite(t)) and math.isfinite(logv)):
+                continue  # a diverged run: the other starts remain
             if best is None or logv < best[0]:
                 best = (logv, t, R, axes, e1, e2)
+    if best is None:  # pragma: no cover - every run diverged: the repaired MVEE frame, exponents at 1 if allowed
+        e1 = e2 = float(np.clip(1.0, *e_bounds))
+        R = _proper_rotation(vecs)
+        best = (0.0, centre, R, _repair(pts, centre, R, mvee_axes, e1, e2), e1, e2)
     _, t, R, axes, e1, e2 = best
     shape = cls(*axes) if cls is Ellipsoid else cls(*axes, e1, e2)
     pose = np.eye(4)

@@ -1,0 +1,357 @@
+"""Superellipsoids and ellipsoids: support against the implicit function and dense surface sampling,
+distances against coal and closed forms, the covering fit on robot links, volume against Monte Carlo.
+
+Every oracle here is independent of spq's own superellipsoid code: the implicit function F and the
+octahedron's vertices are written out in the tests, surface samples come from the textbook
+parametric form, and distances come from coal, closed forms or spq's (separately tested) polytope
+support on a sampled hull.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import spq
+from spq.validation import as_pose
+
+SHAPES = [  # (a, b, c, e1, e2): boxy, ellipsoid, near-diamond, diamond, mixed
+    (0.3, 0.2, 0.1, 0.1, 0.1),
+    (0.3, 0.2, 0.1, 1.0, 1.0),
+    (0.3, 0.2, 0.1, 1.9, 1.9),
+    (0.3, 0.2, 0.1, 2.0, 2.0),
+    (0.3, 0.2, 0.1, 0.1, 1.9),
+    (0.05, 0.12, 0.08, 2.0, 0.1),
+    (0.05, 0.12, 0.08, 0.5, 1.5),
+    (1.0, 1.0, 1.0, 1.999999, 0.7),
+]
+LINKS = ["kuka_link_2", "kuka_link_4", "kuka_link_6", "panda_link_2", "panda_hand"]
+
+
+def implicit_F(points, a, b, c, e1, e2):
+    """F(x) = (|x/a|^(2/e2) + |y/b|^(2/e2))^(e2/e1) + |z/c|^(2/e1), written directly."""
+    x, y, z = np.abs(points[:, 0] / a), np.abs(points[:, 1] / b), np.abs(points[:, 2] / c)
+    return (x ** (2 / e2) + y ** (2 / e2)) ** (e2 / e1) + z ** (2 / e1)
+
+
+def parametric_surface(n, a, b, c, e1, e2, seed):
+    """n surface points from x = a C(eta)^e1 C(w)^e2, y = b C(eta)^e1 S(w)^e2, z = c S(eta)^e1."""
+    rng = np.random.default_rng(seed)
+    eta = rng.uniform(-np.pi / 2, np.pi / 2, n)
+    w = rng.uniform(-np.pi, np.pi, n)
+    spow = lambda t, e: np.sign(t) * np.abs(t) ** e  # noqa: E731
+    return np.column_stack([a * spow(np.cos(eta), e1) * spow(np.cos(w), e2),
+                            b * spow(np.cos(eta), e1) * spow(np.sin(w), e2),
+                            c * spow(np.sin(eta), e1)])
+
+
+def directions_with_zero_components(n, seed):
+    """Random directions, with blocks having one or two zero components and exact ties."""
+    v = np.random.default_rng(seed).normal(size=(n, 3))
+    k = n // 12
+    v[0:k, 0] = 0.0
+    v[k:2 * k, 1] = 0.0
+    v[2 * k:3 * k, 2] = 0.0
+    v[3 * k:4 * k, 0:2] = 0.0
+    v[4 * k:5 * k, 1:3] = 0.0
+    v[5 * k:6 * k, 0::2] = 0.0
+    v[6 * k:7 * k] = np.sign(v[6 * k:7 * k])  # |v_x| = |v_y| = |v_z|
+    v[7 * k:8 * k, 1] = 1e-300 * np.sign(v[7 * k:8 * k, 1])  # a vanishing component
+    return v
+
+
+def random_rotation(rng):
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def pose(R, t):
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = t
+    return T
+
+
+# ------------------------------------------------------------------------------------------
+# 1-2. the support function
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("params", SHAPES)
+def test_support_point_lies_on_the_surface_F_equals_one(params):
+    v = directions_with_zero_components(10_000, seed=1)
+    s = spq.Superellipsoid(*params).support(v)
+    assert np.isfinite(s).all()
+    np.testing.assert_allclose(implicit_F(s, *params), 1.0, rtol=0, atol=1e-12)
+    # and it lies on the side the direction points to
+    assert (np.einsum("ij,ij->i", v, s) > 0).all()
+
+
+@pytest.mark.parametrize("params", SHAPES)
+def test_support_is_never_beaten_by_dense_surface_samples(params):
+    samples = parametric_surface(100_000, *params, seed=2)
+    v = np.random.default_rng(3).normal(size=(300, 3))
+    s = spq.Superellipsoid(*params).support(v)
+    h_support = np.einsum("ij,ij->i", v, s)
+    h_samples = (v @ samples.T).max(axis=1)
+    assert (h_samples <= h_support + 1e-12).all()
+    # and the samples come close: the support value is not an overestimate of the surface's reach
+    assert (h_support - h_samples).max() < 2e-3 * np.abs(v).sum(axis=1).max() * max(params[:3])
+
+
+def test_support_of_the_diamond_limit_e_equals_two_is_an_octahedron_vertex():
+    a, b, c = 0.3, 0.2, 0.1
+    vertices = np.array([[a, 0, 0], [-a, 0, 0], [0, b, 0], [0, -b, 0], [0, 0, c], [0, 0, -c]])
+    v = directions_with_zero_components(3000, seed=4)
+    s = spq.Superellipsoid(a, b, c, 2.0, 2.0).support(v)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", v, s), (v @ vertices.T).max(axis=1), rtol=0, atol=1e-15)
+
+
+def test_support_ignores_the_direction_length_and_a_zero_direction_gives_the_pole():
+    se = spq.Superellipsoid(0.3, 0.2, 0.1, 0.4, 1.3)
+    v = np.random.default_rng(5).normal(size=(200, 3))
+    s = se.support(v)
+    for scale in (1e-300, 1e-150, 1e150, 1e300):
+        np.testing.assert_allclose(se.support(v * scale), s, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(se.support([0.0, 0.0, 0.0]), [0.0, 0.0, 0.1])
+
+
+def test_ellipsoid_support_matches_the_closed_form_and_the_general_formula_near_e_one():
+    a, b, c = 0.3, 0.2, 0.1
+    v = np.random.default_rng(6).normal(size=(2000, 3))
+    s = spq.Ellipsoid(a, b, c).support(v)
+    u = v * [a, b, c]
+    np.testing.assert_allclose(s, u * [a, b, c] / np.linalg.norm(u, axis=1)[:, None], rtol=0, atol=1e-15)
+    near = spq.Superellipsoid(a, b, c, 1.0 + 1e-9, 1.0 - 1e-9).support(v)  # the dual-norm path
+    np.testing.assert_allclose(near, s, rtol=0, atol=1e-8)
+
+
+# ------------------------------------------------------------------------------------------
+# 3. ellipsoid distances against coal
+# ------------------------------------------------------------------------------------------
+def _coal_distances(geom_a, geom_b, poses_a, poses_b):
+    coal = pytest.importorskip("coal")
+    request = coal.DistanceRequest()
+    request.gjk_tolerance = 1e-8
+    result = coal.DistanceResult()
+    tf_a, tf_b = coal.Transform3s(), coal.Transform3s()
+    out = np.empty(len(poses_a))
+    for i, (pa, pb) in enumerate(zip(poses_a, poses_b)):
+        tf_a.setRotation(pa[:3, :3])
+        tf_a.setTranslation(pa[:3, 3])
+        tf_b.setRotation(pb[:3, :3])
+        tf_b.setTranslation(pb[:3, 3])
+        result.clear()
+        out[i] = coal.distance(geom_a, tf_a, geom_b, tf_b, request, result)
+    return out
+
+
+@pytest.mark.parametrize("other", ["ellipsoid", "box"])
+def test_ellipsoid_distances_agree_with_coal(other):
+    coal = pytest.importorskip("coal")
+    from harness.poses import random_poses
+
+    poses_a, poses_b = random_poses(1000, 11, 0.2)
+    A = spq.Ellipsoid(0.12, 0.08, 0.05)
+    if other == "ellipsoid":
+        B, geom_b = spq.Ellipsoid(0.1, 0.1, 0.03), coal.Ellipsoid(0.1, 0.1, 0.03)
+    else:
+        B, geom_b = spq.Box(0.05, 0.07, 0.09), coal.Box(0.1, 0.14, 0.18)  # coal takes full sides
+    ours = spq.distances(A, B, poses_a, poses_b)
+    theirs = _coal_distances(coal.Ellipsoid(0.12, 0.08, 0.05), geom_b, poses_a, poses_b)
+    separated = theirs > 1e-6
+    overlapping = theirs < -1e-6
+    assert separated.sum() > 500 and overlapping.sum() > 50  # both regimes exercised
+    assert (ours.status[separated] == "separated").all()
+    assert (ours.status[overlapping] == "overlapping").all()
+    # coal stops at gjk_tolerance 1e-8; spq certifies its gap to 1e-10
+    np.testing.assert_allclose(ours.distance[separated], theirs[separated], rtol=0, atol=5e-8)
+    # coal's distance is a simplex point's norm, an upper bound: never below spq's certified lower bound
+    assert (theirs[separated] >= ours.lower_bound[separated] - 1e-12).all()
+
+
+def test_sphere_like_ellipsoids_match_the_closed_form_distance_and_never_overlap_when_apart():
+    rng = np.random.default_rng(12)
+    r1, r2 = 0.07, 0.11
+    A, B = spq.Ellipsoid(r1, r1, r1), spq.Ellipsoid(r2, r2, r2)
+    n = 300
+    gaps = 10.0 ** rng.uniform(-8, 0, n)
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    ca = rng.uniform(-1, 1, size=(n, 3))
+    cb = ca + dirs * (r1 + r2 + gaps)[:, None]
+    poses_a = np.array([pose(random_rotation(rng), t) for t in ca])
+    poses_b = np.array([pose(random_rotation(rng), t) for t in cb])
+    batch = spq.distances(A, B, poses_a, poses_b)
+    exact = np.linalg.norm(cb - ca, axis=1) - r1 - r2
+    assert (batch.status == "separated").all()
+    np.testing.assert_allclose(batch.distance, exact, rtol=0, atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------
+# 4. the covering fit
+# ------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def link_fits():
+    from datasets import load_object
+
+    out = {}
+    for name in LINKS:
+        points = load_object(name).vertices
+        out[name] = (points, spq.Superellipsoid.fit(points))
+    print("\nsuperellipsoid fits (volume / convex-hull volume):")
+    for name, (points, fit) in out.items():
+        s = fit.shape
+        print(f"  {name:13s} {len(points):4d} pts  a={s.a:.4f} b={s.b:.4f} c={s.c:.4f} e1={s.e1:.3f} "
+              f"e2={s.e2:.3f}  volume {fit.volume:.3e} m^3  ratio {fit.volume_ratio:.3f}")
+    return out
+
+
+@pytest.mark.parametrize("name", LINKS)
+def test_fit_contains_every_point_of_the_link(link_fits, name):
+    points, fit = link_fits[name]
+    shape, T = fit  # unpacks as (shape, pose)
+    R = as_pose(T)[:3, :3]  # a valid rigid transform
+    local = (points - T[:3, 3]) @ R
+    s = shape
+    assert implicit_F(local, s.a, s.b, s.c, s.e1, s.e2).max() <= 1.0 + 1e-12
+    assert 0.0 < s.e1 <= 2.0 and 0.0 < s.e2 <= 2.0
+
+
+@pytest.mark.parametrize("name", LINKS)
+def test_fit_volume_is_at_least_the_hull_volume_and_at_most_the_enclosing_ellipsoids(link_fits, name):
+    from scipy.spatial import ConvexHull
+
+    points, fit = link_fits[name]
+    hull_volume = ConvexHull(points).volume
+    assert fit.hull_volume == pytest.approx(hull_volume, rel=1e-12)
+    assert fit.volume == pytest.approx(fit.shape.volume(), rel=1e-12)
+    assert 1.0 <= fit.volume_ratio < 3.0  # any convex cover holds the hull; a sensible fit is not huge
+    ellipsoid = spq.Ellipsoid.fit(points)
+    assert ellipsoid.max_f <= 1.0 + 1e-12
+    assert fit.volume <= ellipsoid.volume * (1.0 + 1e-6)  # the family contains the ellipsoid
+
+
+def test_fit_is_deterministic(link_fits):
+    points, first = link_fits["kuka_link_4"]
+    second = spq.Superellipsoid.fit(points.copy())
+    s1, s2 = first.shape, second.shape
+    assert (s1.a, s1.b, s1.c, s1.e1, s1.e2) == (s2.a, s2.b, s2.c, s2.e1, s2.e2)
+    np.testing.assert_array_equal(first.pose, second.pose)
+
+
+def test_fit_of_points_sampled_on_a_known_superellipsoid_recovers_its_volume():
+    params = (0.2, 0.1, 0.05, 0.5, 0.8)
+    R = random_rotation(np.random.default_rng(13))
+    t = np.array([0.3, -0.1, 0.2])
+    points = parametric_surface(3000, *params, seed=14) @ R.T + t
+    fit = spq.Superellipsoid.fit(points)
+    true_volume = spq.Superellipsoid(*params).volume()
+    assert true_volume * 0.98 <= fit.volume <= true_volume * 1.02
+
+
+@pytest.mark.parametrize("points, problem", [
+    (np.zeros((3, 3)), "at least 4"),
+    (np.c_[np.random.default_rng(0).normal(size=(20, 2)), np.zeros(20)], "flat"),
+    (np.outer(np.linspace(0, 1, 10), [1.0, 2.0, 3.0]), "degenerate"),
+    (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, np.nan]]), "NaN"),
+])
+def test_fit_rejects_too_few_flat_collinear_or_nan_points(points, problem):
+    with pytest.raises(ValueError, match=problem):
+        spq.Superellipsoid.fit(points)
+
+
+# ------------------------------------------------------------------------------------------
+# 5. volume, bounding radius, bad input
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("params", SHAPES)
+def test_volume_formula_agrees_with_monte_carlo(params):
+    a, b, c = params[:3]
+    n = 400_000
+    x = np.random.default_rng(15).uniform(-1, 1, size=(n, 3)) * [a, b, c]
+    frac = (implicit_F(x, *params) <= 1.0).mean()
+    sigma = math.sqrt(frac * (1 - frac) / n)
+    assert spq.Superellipsoid(*params).volume() == pytest.approx(8 * a * b * c * frac, abs=5 * sigma * 8 * a * b * c)
+
+
+def test_volume_closed_forms_ellipsoid_and_octahedron():
+    assert spq.Ellipsoid(0.3, 0.2, 0.1).volume() == pytest.approx(4 / 3 * math.pi * 0.006, rel=1e-14)
+    assert spq.Superellipsoid(0.3, 0.2, 0.1, 2, 2).volume() == pytest.approx(4 / 3 * 0.006, rel=1e-14)
+
+
+@pytest.mark.parametrize("params", SHAPES)
+def test_bounding_radius_is_the_farthest_surface_sample(params):
+    samples = parametric_surface(200_000, *params, seed=16)
+    reach = np.linalg.norm(samples, axis=1).max()
+    radius = spq.Superellipsoid(*params).bounding_radius()
+    assert reach <= radius * (1 + 1e-14)
+    assert reach >= radius * (1 - 1e-4)
+
+
+def test_inside_returns_F_and_surface_points_have_F_one():
+    params = (0.3, 0.2, 0.1, 0.4, 1.6)
+    se = spq.Superellipsoid(*params)
+    x = np.random.default_rng(17).normal(size=(1000, 3)) * 0.2
+    np.testing.assert_allclose(se.inside(x), implicit_F(x, *params), rtol=1e-12)
+    np.testing.assert_allclose(implicit_F(se.surface_points(5000, seed=1), *params), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(se.surface_points(100, seed=1), se.surface_points(100, seed=1))
+    assert se.n_features == 1
+
+
+@pytest.mark.parametrize("args, problem", [
+    ((0.0, 1, 1, 1, 1), "a must be finite and > 0"),
+    ((1, -1, 1, 1, 1), "b must be finite and > 0"),
+    ((1, 1, np.inf, 1, 1), "c must be finite and > 0"),
+    ((1, 1, np.nan, 1, 1), "c must be finite and > 0"),
+    ((1, 1, 1, 0.0, 1), r"e1 must be in \(0, 2\]"),
+    ((1, 1, 1, 1, 2.5), r"e2 must be in \(0, 2\]"),
+    ((1, 1, 1, np.nan, 1), r"e1 must be in \(0, 2\]"),
+    ((1, 1, 1, -1, 1), r"e1 must be in \(0, 2\]"),
+])
+def test_bad_parameters_raise_value_error_naming_the_problem(args, problem):
+    with pytest.raises(ValueError, match=problem):
+        spq.Superellipsoid(*args)
+
+
+def test_ellipsoid_rejects_bad_semi_axes():
+    with pytest.raises(ValueError, match="a must be finite and > 0"):
+        spq.Ellipsoid(-1, 1, 1)
+
+
+# ------------------------------------------------------------------------------------------
+# 6. GJK with a superellipsoid on either side
+# ------------------------------------------------------------------------------------------
+def test_gjk_with_the_superellipsoid_on_either_side_agrees_with_a_sampled_hull():
+    params = (0.1, 0.07, 0.05, 0.4, 1.4)
+    se = spq.Superellipsoid(*params)
+    rng = np.random.default_rng(18)
+    poly = spq.Polyhedron.from_points(rng.normal(size=(60, 3)) * [0.05, 0.08, 0.03])
+    inner = spq.Polyhedron.from_points(parametric_surface(20_000, *params, seed=19))  # inside se
+    n = 200
+    poses_se = np.array([pose(random_rotation(rng), rng.uniform(-0.2, 0.2, 3)) for _ in range(n)])
+    poses_poly = np.array([pose(random_rotation(rng), rng.uniform(-0.2, 0.2, 3)) for _ in range(n)])
+    forward = spq.distances(se, poly, poses_se, poses_poly)
+    backward = spq.distances(poly, se, poses_poly, poses_se)
+    sampled = spq.distances(inner, poly, poses_se, poses_poly)
+    sep = forward.status == "separated"
+    assert sep.sum() > 50 and (~sep).sum() > 10
+    np.testing.assert_array_equal(forward.status, backward.status)
+    np.testing.assert_allclose(forward.distance, backward.distance, rtol=0, atol=3e-10)
+    # witness points on a curved surface are fixed only to ~sqrt(gap * radius) = sqrt(1e-10 * 0.1) m
+    np.testing.assert_allclose(forward.point_a[sep], backward.point_b[sep], rtol=0, atol=2e-5)
+    # the sampled hull lies inside the superellipsoid and hugs it: its distance is a close upper bound
+    assert (sampled.distance >= forward.distance - 1e-10).all()
+    assert (sampled.distance - forward.distance).max() < 1e-3
+    # the single query gives the batch's answer
+    for i in range(0, n, 20):
+        r = spq.distance(se, poses_se[i], poly, poses_poly[i])
+        assert r.status == forward.status[i]
+        assert r.distance == pytest.approx(forward.distance[i], abs=1e-12)
+    # witness points: on A's surface (in A's frame) at the reported distance from B's
+    for i in np.flatnonzero(sep)[:30]:
+        T = poses_se[i]
+        local = (forward.point_a[i] - T[:3, 3]) @ T[:3, :3]
+        assert implicit_F(local[None], *params)[0] == pytest.approx(1.0, abs=1e-6)
+        assert np.linalg.norm(forward.point_b[i] - forward.point_a[i]) == pytest.approx(forward.distance[i], abs=1e-12)
