@@ -421,10 +421,27 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
             status = TOUCHING
             break
         minkowski_support(kA, fA, iA, kB, fB, iB, R, t, -v0, -v1, -v2, warm, pa, pb, tmp)
-        vw = v0 * (pa[0] - pb[0]) + v1 * (pa[1] - pb[1]) + v2 * (pa[2] - pb[2])
+        w0, w1, w2 = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
+        vw = v0 * w0 + v1 * w1 + v2 * w2
         lower = max(lower, vw / upper)
         if upper - lower <= tol_abs + tol_rel * upper:
             status = TOUCHING if upper <= tol_abs else SEPARATED
+            break
+        # The support points are points of the bodies too: their distance |w| is an upper bound,
+        # and on curved surfaces |w| - lower shrinks with the square of the direction's error,
+        # long before the simplex point does. Stop on it, with them as witness points.
+        ww = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        if ww < upper and ww - lower <= tol_abs + tol_rel * ww:
+            for c in range(3):
+                PA[0, c] = pa[c]
+                PB[0, c] = pb[c]
+                W[0, c] = pa[c] - pb[c]
+            FI[0, 0] = warm[WARM_FEATURE_A]
+            FI[1, 0] = warm[WARM_FEATURE_B]
+            k = 1
+            lam[0] = 1.0
+            v0, v1, v2, vv = w0, w1, w2, ww * ww
+            status = TOUCHING if ww <= tol_abs else SEPARATED
             break
         if _is_duplicate(PA, PB, k, pa, pb):
             status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
