@@ -188,3 +188,17 @@ def test_the_smallest_admissible_r_in_the_message_is_accepted():
         STPBV.from_points(pts, 0.01, 0.5)
     bound = float(re.search(r"R >= ([0-9.eE+-]+) \(with", str(info.value)).group(1))
     assert STPBV.from_points(pts, 0.01, bound).n_small >= 2
+
+
+def test_from_mesh_builds_the_same_stp_bv_as_the_mesh_vertices():
+    import trimesh
+
+    from datasets.robot_links import ROBOT_LINKS
+    from datasets.paths import pybullet_data_dir
+
+    path = pybullet_data_dir() / ROBOT_LINKS["kuka_link_4"]
+    from_mesh = STPBV.from_mesh(path, 0.005, 2.0)
+    from_points = STPBV.from_points(trimesh.load(path, force="mesh", process=False).vertices, 0.005, 2.0)
+    assert from_mesh.counts() == from_points.counts()
+    d = directions(2000, 11)
+    np.testing.assert_array_equal(from_mesh.support(d), from_points.support(d))
