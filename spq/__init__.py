@@ -4,6 +4,7 @@ Convex shapes with support functions (polyhedral hull, STP-BV, superellipsoid, p
 distance with witness points, single, per-pair with warm start, and batched.
 """
 
+from spq.gradient import distance_gradient, distance_gradients
 from spq.kernels.gjk import STATUS_NAMES
 from spq.query import (
     DEFAULT_MAX_ITER,
@@ -26,5 +27,5 @@ __version__ = "0.1.0"
 __all__ = [
     "STATUS_NAMES", "DEFAULT_MAX_ITER", "DEFAULT_TOL_ABS", "DEFAULT_TOL_REL", "BatchDistances",
     "DistanceResult", "Pair", "distance", "distances", "Shape", "Polyhedron", "Box", "Capsule", "Sphere", "STPBV",
-    "Superellipsoid", "Ellipsoid", "FitResult",
+    "Superellipsoid", "Ellipsoid", "FitResult", "distance_gradient", "distance_gradients",
 ]
