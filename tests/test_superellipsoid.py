@@ -132,20 +132,13 @@ def test_ellipsoid_support_matches_the_closed_form_and_the_general_formula_near_
 # 3. ellipsoid distances against coal
 # ------------------------------------------------------------------------------------------
 def _coal_distances(geom_a, geom_b, poses_a, poses_b):
+    """coal's distances between two coal geometries, through the harness's coal adapter loop."""
     coal = pytest.importorskip("coal")
+    from harness.engines.coal_engine import CoalPair
+
     request = coal.DistanceRequest()
     request.gjk_tolerance = 1e-8
-    result = coal.DistanceResult()
-    tf_a, tf_b = coal.Transform3s(), coal.Transform3s()
-    out = np.empty(len(poses_a))
-    for i, (pa, pb) in enumerate(zip(poses_a, poses_b)):
-        tf_a.setRotation(pa[:3, :3])
-        tf_a.setTranslation(pa[:3, 3])
-        tf_b.setRotation(pb[:3, :3])
-        tf_b.setTranslation(pb[:3, 3])
-        result.clear()
-        out[i] = coal.distance(geom_a, tf_a, geom_b, tf_b, request, result)
-    return out
+    return CoalPair(geom_a, geom_b, request).distance_loop(np.asarray(poses_a), np.asarray(poses_b))
 
 
 @pytest.mark.parametrize("other", ["ellipsoid", "box"])
