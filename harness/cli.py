@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
@@ -226,9 +227,171 @@ def cmd_continuity(args) -> int:
     return 0
 
 
+def cmd_stability(args) -> int:
+    from datasets import load_object
+    from harness import stability as st
+    from harness.report.meta import run_metadata
+    from harness.report.tables import markdown_table, write_table
+
+    start = time.perf_counter()
+    config = st.StabilityConfig(seed=args.seed, quick=bool(args.quick), engines=args.engines)
+    table, sweep = st.run(config, load_object, progress=not args.quiet)
+    summary = st.summarize(table)
+    families = st.summarize(table, by=("family", "engine"))
+    sweep_summary = st.coal_sweep_summary(sweep)
+    fcl_gap = st.fcl_gap_summary(table)
+    meta = run_metadata(command="spq stability", seed=args.seed, quick=bool(args.quick),
+                        engine_tolerances={k: list(v) for k, v in st.ENGINE_TOL.items()},
+                        ambiguous_band_m=st.AMBIGUOUS_BAND, links=list(config.links),
+                        queries=len(table) + len(sweep), seconds=round(time.perf_counter() - start, 1))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    notes = ("One row per case, pose and engine. error = distance - exact reference distance (m); rel_error on "
+             "separated poses. verdict: ok (|error| <= allowed_error = tol_abs + tol_rel * d_ref + 64 eps * extent, "
+             "and a status consistent with the reference outside the contact band max(1e-9 m, tol_abs)), wrong, "
+             "failed (status failed). Tolerances (abs m, rel): " +
+             ", ".join(f"{k} {a:g}/{r:g}" for k, (a, r) in st.ENGINE_TOL.items()) + ".")
+    write_table(table, out, "stability", "Stability cases (detail)", meta, notes)
+    if not sweep.empty:
+        sweep.to_csv(out / "stability_coal_dualitygap_detail.csv", index=False)
+        write_table(sweep_summary, out, "stability_coal_dualitygap",
+                    "coal with DualityGap + Relative: false overlaps against gjk_tolerance", meta,
+                    "Separated link poses (gaps 1e-6, 1e-4, 1e-2 m). false_overlaps: reference separated by more "
+                    "than 1e-9 m, coal reports a collision. 'coal' is the adapter's default criterion at 1e-8.")
+    text = ["# Stability summary", "", "Counts of verdicts per engine over every case family (see stability.md for "
+            "the detail). " + notes, "", markdown_table(summary), "", "## Per family", ""]
+    for fam, para in st.FAMILY_NOTES.items():
+        text += [f"### {fam}", "", para, ""]
+        sub = families[families.family == fam]
+        if len(sub):
+            text += [markdown_table(sub.drop(columns=["family"])), ""]
+    if len(fcl_gap):
+        text += ["## FCL 3.0 box gap", "", markdown_table(fcl_gap), ""]
+    if not sweep.empty:
+        text += ["## coal DualityGap + Relative sweep", "",
+                 "coal with gjk_convergence_criterion = DualityGap and gjk_convergence_criterion_type = Relative, "
+                 "gjk_tolerance swept (engine name), on separated link poses (gaps 1e-6, 1e-4, 1e-2 m). "
+                 "false_collisions: the reference is separated by more than 1e-9 m but coal answers a distance "
+                 "<= 1e-9 m or a collision; false_overlaps: coal's raw distance is negative (min_raw_distance: "
+                 "the most negative one). 'coal' is the adapter's default criterion at gjk_tolerance 1e-8.", "",
+                 markdown_table(sweep_summary), ""]
+    text += ["Run: `" + __import__("json").dumps(meta, sort_keys=True) + "`", ""]
+    summary.to_csv(out / "stability_summary.csv", index=False)
+    (out / "stability_summary.md").write_text("\n".join(text))
+    print("\nPer engine:")
+    _print(summary)
+    if len(fcl_gap):
+        print("\nFCL 3.0 box gap (fcl rows):")
+        _print(fcl_gap[fcl_gap.engine == "fcl"])
+    if not sweep.empty:
+        print("\ncoal DualityGap + Relative sweep:")
+        _print(sweep_summary)
+    print(f"\nwrote {out}/stability.csv, .md, stability_summary.*, stability_coal_dualitygap* "
+          f"in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
+def cmd_tradeoff(args) -> int:
+    from datasets import load_object
+    from harness import tradeoff as tr
+    from harness.report.meta import run_metadata
+    from harness.report.tables import write_table
+
+    start = time.perf_counter()
+    overrides = {k: v for k, v in (("per_bucket", args.per_bucket), ("repeats", args.repeats)) if v is not None}
+    config = (tr.quick_tradeoff_config(args.seed, **overrides) if args.quick
+              else tr.TradeoffConfig(seed=args.seed, **overrides))
+    table, suite = tr.run_tradeoff(config, load_object, progress=not args.quiet)
+    out = Path(args.out)
+    meta = run_metadata(command="spq tradeoff", quick=bool(args.quick), seed=args.seed, objects=[config.object_a,
+                        config.object_b], buckets=list(config.buckets), per_bucket=config.per_bucket,
+                        queries=len(suite), repeats=config.repeats, spq_tols=list(config.spq_tols),
+                        coal_tols=list(config.coal_tols), seconds=round(time.perf_counter() - start, 1))
+    notes = (f"{config.object_a} against {config.object_b}, {len(suite)} separated distance-controlled poses "
+             f"(harness.poses.bucket_suite, buckets {', '.join(config.buckets)}, {config.per_bucket} each, seed "
+             f"{args.seed}; reference distances {suite.ref_distance.min():.3g} to {suite.ref_distance.max():.3g} m). "
+             "All engines on the same poses in the same run, best of "
+             f"{config.repeats} timed runs after a warm-up on 8 poses. spq: tol = rel_tol = tolerance (stops when "
+             "upper - lower bound <= tol + rel_tol * distance); coal: gjk_tolerance = tolerance; fcl, bullet "
+             "(margin 0) and bullet-margin (pybullet's default margin) at their own settings. batched: one compiled "
+             "call for all poses (cold starts); per-call: one Python call per query (spq.Pair keeps its warm start). "
+             "Errors: |distance - exact reference| in m, from the distances of the timed run itself. failures: "
+             f"non-finite distance or |distance| above {tr.FAIL_DISTANCE:g} m (coal at loose tolerances can return "
+             "-DBL_MAX on a separated pose); "
+             "max_abs_error and mean_abs_error leave failures out, median_abs_error counts them as infinite. "
+             "zero_error_fraction: share of queries whose error is exactly 0. pareto_max / pareto_median: on the "
+             "Pareto front of queries/s against that error over all rows (rows with failures are not on the "
+             f"max-error front). In the chart, errors of exactly 0 are clipped to {tr.ZERO_CLIP:g} m for the log axis "
+             "(dashed line); rows with failures are circled in red.")
+    write_table(table, out, "tradeoff", "Speed against accuracy", meta, notes)
+    tr.plot_tradeoff(table, out / "tradeoff.png",
+                     f"Speed vs accuracy, {config.object_a} | {config.object_b}, {len(suite)} separated poses")
+    _print(table[["engine", "mode", "tolerance", "queries_per_s", "max_abs_error", "median_abs_error",
+                  "zero_error_fraction", "failures", "pareto_max", "pareto_median"]])
+    print(f"\nwrote {out}/tradeoff.csv, .md, .png in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
+def cmd_rtradeoff(args) -> int:
+    from datasets import load_object
+    from harness import tradeoff as tr
+    from harness.report.meta import run_metadata
+    from harness.report.tables import write_table
+
+    start = time.perf_counter()
+    overrides = dict(r=args.r, R_max=args.R_max, threshold_factor=args.threshold_factor)
+    if args.R_values:
+        overrides["R_values"] = tuple(args.R_values)
+    config = (tr.quick_rtradeoff_config(args.object, args.seed, **overrides) if args.quick
+              else tr.RTradeoffConfig(object_name=args.object, seed=args.seed, **overrides))
+    table, facts = tr.run_rtradeoff(config, load_object, progress=not args.quiet)
+    pick, text = tr.recommend(table, config.threshold_factor)
+    table["recommended"] = table.R == (pick.R if pick is not None else np.nan)
+    out = Path(args.out)
+    meta = run_metadata(command="spq rtradeoff", quick=bool(args.quick), object=args.object, seed=args.seed,
+                        r=config.r, R_min=facts["R_min"], poses=config.poses,
+                        translation_range_m=config.translation_range, volume_samples=config.volume_samples,
+                        repeats=config.repeats, step_s=config.step, threshold_factor=config.threshold_factor,
+                        spq_tol_abs=DEFAULT_TOL_ABS, spq_tol_rel=DEFAULT_TOL_REL,
+                        seconds=round(time.perf_counter() - start, 1))
+    notes = (f"STP-BVs of {args.object}'s {facts['points']} hull vertices, r = {config.r} m, R swept from just above "
+             f"the smallest admissible R = r + enclosing radius = {facts['R_min']:.6g} m (log-spaced in R - R_min). "
+             "features: patches (stp.n_patches). volume_excess: Monte Carlo volume (harness.table1.monte_carlo_volume, "
+             f"{config.volume_samples} samples, seed {args.seed}, the same box and points for every R) / hull volume "
+             f"({facts['hull_volume']:.6g} m^3, qhull) - 1. queries_per_s: spq.distances STP-PCH (the STP-BV against "
+             f"the link's hull) on {config.poses} random poses (harness.poses.random_poses, ±{config.translation_range} m), "
+             f"default tolerance, best of {config.repeats}. witness_lipschitz: max |Δp| / step of the witness points "
+             "(m/rad) for STP-PCH on harness.continuity's parallel_faces trajectory at one step (step_rad), on a "
+             f"{config.grid}-point grid plus points straddling the {config.jumps} largest witness jumps.")
+    write_table(table, out, "rtradeoff", "STP-BV big radius R: features, volume, speed, smoothness", meta,
+                notes + "\n\n## Recommendation\n\n" + text)
+    tr.plot_rtradeoff(table, out / "rtradeoff.png", facts, pick,
+                      f"STP-BV of {args.object}, r = {config.r} m: what R trades")
+    _print(table[["R", "R_minus_R_min", "features", "volume_excess", "queries_per_s", "witness_lipschitz",
+                  "recommended"]])
+    print("\n" + text)
+    print(f"\nwrote {out}/rtradeoff.csv, .md, .png in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
+def cmd_report(args) -> int:
+    from harness.report_suite import run_report
+
+    start = time.perf_counter()
+    paths = run_report(Path(args.out), quick=args.quick, seed=args.seed)
+    print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spq", description="Smooth Proximity Queries: measurements.")
     sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("report", help="run every suite and write reports/index.html and REPORT.md")
+    p.add_argument("--quick", action="store_true", help="small settings (a few minutes; what CI runs)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("crosscheck", help="every engine on distance-controlled poses vs the exact reference")
     p.add_argument("--objects", nargs="+", help="dataset names or mesh/qhull paths (default: the built-in set)")
@@ -274,6 +437,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quick", action="store_true", help="fewer steps and samples (a few seconds)")
     p.set_defaults(func=cmd_continuity)
+
+    p = sub.add_parser("stability", help="every engine on cases where distance methods are known to fail")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--engines", nargs="+", help="engine names (default: spq fcl coal bullet bullet-margin)")
+    p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.add_argument("--quick", action="store_true", help="one pose per case and fewer sweeps (seconds)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_stability)
+
+    p = sub.add_parser("tradeoff", help="speed against accuracy: engines' tolerances swept on one pose suite")
+    p.add_argument("--per-bucket", type=int, default=None, help="poses per separated bucket (default 200; quick 10)")
+    p.add_argument("--repeats", type=int, default=None, help="timed runs per setting, best kept (default 5; quick 2)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.add_argument("--quick", action="store_true", help="small run (a few seconds)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_tradeoff)
+
+    p = sub.add_parser("rtradeoff", help="STP-BV big radius R: features, volume excess, speed, witness smoothness")
+    p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
+    p.add_argument("--r", type=float, default=0.005, help="small radius (m)")
+    p.add_argument("--R-max", type=float, default=100.0, dest="R_max", help="largest R (m)")
+    p.add_argument("--R-values", type=float, nargs="+", dest="R_values", help="explicit R values (m)")
+    p.add_argument("--threshold-factor", type=float, default=10.0, dest="threshold_factor",
+                   help="recommendation: Lipschitz ratio at most this times the smallest seen")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.add_argument("--quick", action="store_true", help="small run (a few seconds)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_rtradeoff)
     return parser
 
 

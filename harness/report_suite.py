@@ -1,0 +1,169 @@
+"""`spq report`: run the suites, then assemble index.html and REPORT.md from what they wrote.
+
+Each suite is run through its own command (in this process) into the output folder, and its section
+is built from the files it wrote, with readings computed from the numbers. ``quick`` shrinks every
+suite so that the whole report takes a few minutes (it is what CI runs).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from harness.report.html import Chart, Section, render
+from harness.report.meta import run_metadata
+
+
+@dataclass
+class Suite:
+    name: str
+    args: Callable[[bool], list[str]]  # quick -> command-line arguments (without --out)
+    section: Callable[[Path], Section]
+
+
+def _read(out: Path, name: str) -> pd.DataFrame:
+    return pd.read_csv(out / name)
+
+
+def crosscheck_section(out: Path) -> Section:
+    engines = _read(out, "crosscheck_engines.csv")
+    worst = _read(out, "crosscheck_worst.csv")
+    spq_row = engines[engines.engine == "spq"].iloc[0]
+    paragraphs = [
+        f"Every engine answered the same {int(spq_row.n)} distance-controlled poses (13 buckets from 5 body sizes "
+        "apart to 10% overlap), scored against an exact reference that shares no code with spq's GJK (the "
+        "closest point of the Minkowski-difference hull).",
+        f"spq: largest absolute error {spq_row.max_abs_error:.2g} m, witness points off their surfaces by at most "
+        f"{spq_row.max_witness_off_surface:.2g} m, {int(spq_row.false_overlaps)} false and "
+        f"{int(spq_row.missed_overlaps)} missed overlaps, {int(spq_row.failures)} failures.",
+    ]
+    for _, r in engines[engines.engine != "spq"].iterrows():
+        paragraphs.append(
+            f"{r.engine}: largest error {r.max_abs_error:.2g} m, mean signed error {r.mean_signed_error:.2g} m, "
+            f"{int(r.false_overlaps)} false and {int(r.missed_overlaps)} missed overlaps, {int(r.failures)} failures.")
+    cols = ["engine", "n", "max_abs_error", "median_abs_error", "max_rel_error", "mean_signed_error",
+            "max_witness_off_surface", "false_overlaps", "missed_overlaps", "failures"]
+    return Section("Cross-check against the exact reference", paragraphs,
+                   [("Per engine (errors in m)", engines[cols]), ("Worst cases", worst)])
+
+
+def bench_section(out: Path, suite: str, title: str) -> Section:
+    table = _read(out, f"bench_{suite}.csv")
+    rows = [f"{r.pair} {r.engine} {r['mode']}: {r.queries_per_s:,.0f} queries/s, {r.ratio_to_coal_pch:.2f}x coal's PCH-PCH"
+            for _, r in table.iterrows() if r.engine == "spq"]
+    return Section(title, ["Same link, same poses, every engine in one run (best of the repeats). " + "; ".join(rows) + "."],
+                   [("Queries per second", table[["pair", "engine", "mode", "queries_per_s", "ratio_to_coal_pch",
+                                                  "features", "overlapping"]])])
+
+
+def support_section(out: Path) -> Section:
+    table = _read(out, "support_scaling.csv")
+    slopes = _read(out, "support_scaling_slopes.csv")
+    s = {(r.method, r["mode"]): r.loglog_slope for _, r in slopes.iterrows()}
+    caption = ("Time per STP-BV support call (ns, log scale) against the feature count (log scale), varied by R on one "
+               f"link. Log-log slopes: naive {s.get(('naive', 'cold'), float('nan')):.2f}, guided march "
+               f"{s.get(('march', 'cold'), float('nan')):.2f}, hull-accelerated {s.get(('hull', 'cold'), float('nan')):.2f} "
+               "(cold); warm searches along a smooth path stay flat. A slope of 1 is linear, 0.5 the paper's sqrt(n).")
+    return Section("STP-BV support scaling (paper Fig. 6 and 7)", [],
+                   [("Slopes", slopes)], [Chart(out / "support_scaling.png", caption)])
+
+
+def table1_section(out: Path) -> Section:
+    table = _read(out, "table1.csv")
+    volumes = _read(out, "table1_volumes.csv")
+    text = (out / "table1.md").read_text()
+    reading = text.split("## Reading", 1)[1].split("Run:", 1)[0].strip() if "## Reading" in text else ""
+    anchor = [ln for ln in text.splitlines() if "coal PCH-PCH in the same run" in ln]
+    return Section("Table I: PCH, STP and CSE on one link", [*(a.strip() for a in anchor[:1]), reading],
+                   [("Queries per second per pair (paper's figures beside)", table), ("Bounding volumes", volumes)])
+
+
+def continuity_section(out: Path) -> Section:
+    summary = _read(out, "continuity_summary.csv")
+    caption = ("Empirical Lipschitz ratio of the witness point, max |p(s+h) - p(s)| / h (log scale), against the step h "
+               "(log scale) along three trajectories. Polyhedral pairs grow like 1/h where the witness point jumps "
+               "(parallel faces); pairs with an STP-BV or a superellipsoid stay bounded: their gradient is continuous.")
+    paths = ("Witness point of B along the parallel-face rotation: PCH-PCH jumps across the face as the faces pass "
+             "parallel; the strictly convex covers move it continuously.")
+    return Section("Gradient continuity", [], [("Summary", summary)],
+                   [Chart(out / "continuity_lipschitz.png", caption), Chart(out / "continuity_witness_paths.png", paths)])
+
+
+def tradeoff_section(out: Path) -> Section:
+    table = _read(out, "tradeoff.csv")
+    caption = ("Queries per second (log scale) against the largest and the median absolute error (m, log scale; exact "
+               "zeros drawn at 1e-17) on one suite of separated poses with exact reference distances. spq and coal "
+               "are swept over their tolerance (one curve each); python-fcl and pybullet expose none and are single "
+               "points. The Pareto front marks the settings no other setting beats in both speed and accuracy.")
+    return Section("Speed against accuracy", [], [("Per engine and setting", table)],
+                   [Chart(out / "tradeoff.png", caption)])
+
+
+def rtradeoff_section(out: Path) -> Section:
+    table = _read(out, "rtradeoff.csv")
+    text = (out / "rtradeoff.md").read_text()
+    recommendation = [p.strip() for p in text.split("\n\n") if "recommend" in p.lower() or "pick" in p.lower()]
+    caption = ("Against R (m, log scale) at fixed r: the STP-BV's feature count, its volume excess over the hull, "
+               "STP-PCH queries per second, and the witness-point Lipschitz ratio (m/rad) on the parallel-face "
+               "rotation. A larger R hugs the hull more closely but lets the witness point move faster.")
+    return Section("Choosing R", recommendation[:1], [("R sweep", table)], [Chart(out / "rtradeoff.png", caption)])
+
+
+def stability_section(out: Path) -> Section:
+    summary = _read(out, "stability_summary.csv")
+    spq_row = summary[summary.engine == "spq"].iloc[0]
+    paragraphs = [
+        "Every engine on the cases where distance solvers are known to fail: near contact (1e-4 to 1e-12 m), shallow "
+        "and deep overlap, scales from 1e-3 m to 1e3 m, bodies 1e4 m from the origin, flat and needle-like bodies, "
+        "near-parallel faces, FCL's 3.0-gap boxes, and coal's duality-gap criterion at several tolerances.",
+        f"spq: {int(spq_row.ok)} ok, {int(spq_row.wrong)} wrong, {int(spq_row.failed)} failed (a failed status is spq "
+        "declining to certify, never a wrong number). Details per family and the coal tolerance sweep: "
+        "stability_summary.md and stability_coal_dualitygap.md beside this page."]
+    return Section("Stability where methods fail", paragraphs, [("Verdicts per engine", summary)])
+
+
+SUITES = [
+    Suite("crosscheck", lambda q: ["crosscheck", "--quiet"] + (["--per-bucket", "26"] if q else []),
+          crosscheck_section),
+    Suite("bench pch", lambda q: ["bench", "pch", "--quiet"] + (["--poses", "2000", "--repeats", "1"] if q else []),
+          lambda out: bench_section(out, "pch", "Throughput, PCH-PCH (every engine)")),
+    Suite("bench stp", lambda q: ["bench", "stp", "--quiet"] + (["--poses", "2000", "--repeats", "1"] if q else []),
+          lambda out: bench_section(out, "stp", "Throughput with STP-BVs")),
+    Suite("bench-support", lambda q: ["bench-support", "--quiet"] + (["--directions", "2000", "--repeats", "1"] if q else []),
+          support_section),
+    Suite("table1", lambda q: ["bench", "table1", "--quiet"] + (["--poses", "2000", "--repeats", "1"] if q else []),
+          table1_section),
+    Suite("continuity", lambda q: ["continuity"] + (["--quick"] if q else []), continuity_section),
+    Suite("tradeoff", lambda q: ["tradeoff"] + (["--quick"] if q else []), tradeoff_section),
+    Suite("rtradeoff", lambda q: ["rtradeoff"] + (["--quick"] if q else []), rtradeoff_section),
+    Suite("stability", lambda q: ["stability", "--quiet"] + (["--quick"] if q else []), stability_section),
+]
+
+
+def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = None) -> list[Path]:
+    """Run the suites into out (quick: small settings) and render the report."""
+    from harness.cli import main
+
+    start = time.perf_counter()
+    sections, timings = [], {}
+    for suite in SUITES:
+        if only and suite.name not in only:
+            continue
+        t0 = time.perf_counter()
+        code = main(suite.args(quick) + ["--out", str(out)])
+        if code != 0:
+            raise RuntimeError(f"suite {suite.name!r} failed with exit code {code}")
+        timings[suite.name] = round(time.perf_counter() - t0, 1)
+        sections.append(suite.section(out))
+    meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick,
+                        suite_seconds=timings, seconds=round(time.perf_counter() - start, 1))
+    intro = ["spq measures distance queries between convex shapes: polyhedral hulls (PCH), sphere-torus-patch "
+             "bounding volumes (STP-BV) and superellipsoids (CSE), against python-fcl, coal, pybullet and an exact "
+             "reference. Every figure below was measured in this run; each table's source CSV sits beside this page.",
+             "Quick run: small settings, for checking that everything works; the figures are noisier." if quick else
+             "Full run."]
+    return render(out, "spq report", intro, sections, meta)

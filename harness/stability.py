@@ -1,0 +1,396 @@
+"""Numerical stability: every engine on configurations where distance methods are known to fail.
+
+Case families (each a small set of poses, every one scored against the exact reference of
+:mod:`harness.reference`): touching at 1e-4 .. 1e-12 m, shallow and deep overlaps, scales 1e-3 to
+1e3 m, bodies 1e4 m from the origin, flat and needle-like bodies, near-parallel faces, the box gap
+where FCL's progress-based stop is reported to return 3.16 instead of 3.0 (NOTES 5), and a sweep of
+coal's DualityGap + Relative convergence criterion over gjk_tolerance (NOTES 6).
+
+Verdict per query: 'failed' (status failed), 'ok' (|distance - reference| within the engine's
+tolerance and a status consistent with the reference outside the contact band; inside the band
+|d_ref| <= max(1e-9 m, engine tolerance) any non-failed status with a distance within tolerance is
+ok), 'wrong' otherwise. Overlaps are scored on the status only (distance 0); depths are recorded.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+import spq
+from harness.poses import pose_matrix, random_rotations
+from harness.reference import MinkowskiReference, reference_distance
+
+AMBIGUOUS_BAND = 1e-9  # m
+ENGINES = ("spq", "fcl", "coal", "bullet", "bullet-margin")
+EPS = np.finfo(float).eps
+
+# (absolute m, relative) tolerance each engine is judged by; see the module docstring and the MD notes
+ENGINE_TOL = {
+    "spq": (spq.DEFAULT_TOL_ABS, spq.DEFAULT_TOL_REL),  # its certificate
+    "fcl": (1e-6, 1e-6),  # FCL's internal GJK tolerance (not exposed by python-fcl)
+    "coal": (1e-8, 1e-8),  # gjk_tolerance set by the adapter
+    "bullet": (1e-6, 1e-4),  # NOTES 6: ~1e-4 relative on curved hulls with margin 0
+    "bullet-margin": (2e-3 + 1e-6, 1e-4),  # 1 mm default margin per shape: 2 mm bias accepted
+}
+DUALITY_TOLERANCES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
+DUALITY_TOLERANCES_QUICK = (1e-4, 1e-8, 1e-12)
+
+
+@dataclass
+class StabilityConfig:
+    seed: int = 0
+    quick: bool = False
+    engines: list[str] | None = None
+    links: tuple[str, str] = ("kuka_link_4", "panda_link_2")
+
+    @property
+    def n(self) -> int:  # random poses per (case, parameter)
+        return 1 if self.quick else 3
+
+
+@dataclass
+class Case:
+    family: str
+    case: str
+    param: float
+    a: spq.Polyhedron
+    b: spq.Polyhedron
+    poses: list = field(default_factory=list)  # (pose_a, pose_b)
+
+
+def box(sx: float, sy: float, sz: float) -> spq.Polyhedron:
+    """Box of full sizes (sx, sy, sz) m centred on its origin, from its 8 corners."""
+    c = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+    return spq.Polyhedron.from_points(c * np.array([sx, sy, sz]))
+
+
+def rot_axis(axis, angle: float) -> np.ndarray:
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+
+
+def place(a, b, rot_a, rot_b, t_a, direction, target: float) -> tuple[np.ndarray, np.ndarray]:
+    """Poses with B moved along the exact separation normal so the signed distance is ``target``
+    (exact for target >= 0: moving along the normal changes a separated distance linearly)."""
+    direction = np.asarray(direction, float) / np.linalg.norm(direction)
+    r = a.bounding_radius() + b.bounding_radius()
+    pose_a = pose_matrix(rot_a, t_a)
+    pose_b = pose_matrix(rot_b, np.asarray(t_a) + 1.05 * r * direction)
+    start = MinkowskiReference(a, b, pose_a, pose_b).query()
+    pose_b = pose_b.copy()
+    pose_b[:3, 3] = pose_b[:3, 3] + (target - start.distance) * start.normal
+    return pose_a, pose_b
+
+
+def _unit(rng) -> np.ndarray:
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)
+
+
+def _random_placements(a, b, target, n, rng, t_a=None):
+    out = []
+    for _ in range(n):
+        rot = random_rotations(2, rng)
+        out.append(place(a, b, rot[0], rot[1], np.zeros(3) if t_a is None else t_a, _unit(rng), target))
+    return out
+
+
+def build_cases(config: StabilityConfig, load_object) -> list[Case]:
+    rng = np.random.default_rng(config.seed)
+    n = config.n
+    unit = box(1, 1, 1)
+    la, lb = (load_object(name) for name in config.links)
+    lname = f"{config.links[0]}|{config.links[1]}"
+    cases: list[Case] = []
+
+    # touching
+    for d in (1e-4, 1e-6, 1e-8, 1e-10, 1e-12):
+        aligned = place(unit, unit, np.eye(3), np.eye(3), np.zeros(3), [1, 0, 0], d)
+        cases.append(Case("touching", "box|box face-face", d, unit, unit, [aligned]))
+        cases.append(Case("touching", "box|box random", d, unit, unit, _random_placements(unit, unit, d, n, rng)))
+        cases.append(Case("touching", lname, d, la, lb, _random_placements(la, lb, d, n, rng)))
+
+    # overlapping (shallow: depth 1e-6..1e-3 m; deep: half the size)
+    for depth in (1e-6, 1e-5, 1e-4, 1e-3):
+        cases.append(Case("overlap_shallow", "box|box random", depth, unit, unit,
+                          _random_placements(unit, unit, -depth, n, rng)))
+        cases.append(Case("overlap_shallow", lname, depth, la, lb, _random_placements(la, lb, -depth, n, rng)))
+    cases.append(Case("overlap_deep", "box|box random", 0.5, unit, unit, _random_placements(unit, unit, -0.5, n, rng)))
+    size = 0.5 * (la.bounding_radius() + lb.bounding_radius())
+    cases.append(Case("overlap_deep", lname, 0.5 * size, la, lb, _random_placements(la, lb, -0.5 * size, n, rng)))
+
+    # scales: same pair, same relative pose, every length times s
+    base_box = _random_placements(unit, unit, 0.05, n, rng)
+    base_link = _random_placements(la, lb, 0.01, n, rng)
+    for s in (1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3):
+        for name, (a, b), base in (("box|box", (unit, unit), base_box), (lname, (la, lb), base_link)):
+            sa, sb = spq.Polyhedron.from_points(a.vertices * s), spq.Polyhedron.from_points(b.vertices * s)
+            poses = []
+            for pa, pb in base:
+                pa, pb = pa.copy(), pb.copy()
+                pa[:3, 3] *= s
+                pb[:3, 3] *= s
+                poses.append((pa, pb))
+            cases.append(Case("scale", name, s, sa, sb, poses))
+
+    # far from the origin: both bodies shifted by 1e4 m, same relative pose
+    for gap in (1e-2, 1e-4, 1e-6):
+        for name, (a, b) in (("box|box", (unit, unit)), (lname, (la, lb))):
+            poses = []
+            for pa, pb in _random_placements(a, b, gap, n, rng):
+                shift = 1e4 * _unit(rng)
+                pa, pb = pa.copy(), pb.copy()
+                pa[:3, 3] += shift
+                pb[:3, 3] += shift
+                poses.append((pa, pb))
+            cases.append(Case("far_from_origin", name, gap, a, b, poses))
+
+    # flat and needle-like bodies
+    flat, needle = box(1, 1, 1e-4), box(1e-4, 1e-4, 1)
+    for name, (a, b) in (("flat|flat", (flat, flat)), ("needle|needle", (needle, needle)),
+                         ("flat|needle", (flat, needle)), ("flat|box", (flat, unit))):
+        for gap in (1e-1, 1e-3, 1e-6, -1e-5):
+            cases.append(Case("flat_needle", name, gap, a, b, _random_placements(a, b, gap, n, rng)))
+
+    # near-parallel faces: B's facing face tilted by theta about y (and about a diagonal), gap d
+    for theta in (1e-3, 1e-5, 1e-7, 1e-9):
+        for gap in (1e-3, 1e-6):
+            poses = [place(unit, unit, np.eye(3), rot_axis(axis, theta), np.zeros(3), [1, 0, 0], gap)
+                     for axis in ([0, 1, 0], [0, 1, 1])]
+            cases.append(Case("near_parallel", f"box|box gap {gap:g}", theta, unit, unit, poses))
+    return cases
+
+
+def fcl_gap_cases(config: StabilityConfig) -> list[Case]:
+    """Boxes of sizes 1 and 2 with an exact 3.0 gap: one rotated about z (0..90 degrees), and a
+    few random rotations (NOTES 5: FCL's libccd path reported a 3.0 gap as 3.16)."""
+    rng = np.random.default_rng(config.seed + 1)
+    small, big = box(1, 1, 1), box(2, 2, 2)
+    cases = []
+    angles = (0, 15, 30, 45, 60, 75) if config.quick else tuple(range(0, 91, 5))
+    for deg in angles:
+        rb = rot_axis([0, 0, 1], math.radians(deg))
+        poses = [place(small, big, np.eye(3), rb, np.zeros(3), d, 3.0) for d in ([1, 0, 0], [1, 1, 0], [1, 0.3, 0.2])]
+        cases.append(Case("fcl_box_gap_3", "box1|box2 rot z", float(deg), small, big, poses))
+    unit = box(1, 1, 1)
+    for axis in range(3):  # fcl issue #508: unit boxes 4 m apart along y or z gave 3.16228
+        for gap in (1.0, 2.0, 3.0):
+            t = np.zeros(3)
+            t[axis] = 1.0 + gap
+            cases.append(Case("fcl_box_gap_3", f"box1|box1 aligned along {'xyz'[axis]}", gap, unit, unit,
+                              [(np.eye(4), pose_matrix(np.eye(3), t))]))
+        t = np.zeros(3)
+        t[axis] = 1.5 + 3.0
+        cases.append(Case("fcl_box_gap_3", f"box1|box2 aligned along {'xyz'[axis]}", 3.0, small, big,
+                          [(np.eye(4), pose_matrix(np.eye(3), t))]))
+    k = 2 if config.quick else 8
+    poses = _random_placements(small, big, 3.0, k, rng)
+    cases.append(Case("fcl_box_gap_3", "box1|box2 random rot", float("nan"), small, big, poses))
+    return cases
+
+
+def tolerance_of(engine: str) -> tuple[float, float]:
+    if engine in ENGINE_TOL:
+        return ENGINE_TOL[engine]
+    if engine.startswith("coal-dg"):
+        tol = float(engine.split("tol")[-1])
+        return max(tol, 1e-8), max(tol, 1e-8)
+    return 1e-6, 1e-6
+
+
+def verdict(engine: str, status: str, distance: float, ref_distance: float, ref_signed: float,
+            extent: float) -> tuple[str, float]:
+    """('ok' | 'wrong' | 'failed', allowed error in m)."""
+    tol_abs, tol_rel = tolerance_of(engine)
+    allowed = tol_abs + tol_rel * max(ref_distance, 0.0) + 64 * EPS * extent
+    if status == "failed" or not math.isfinite(distance):
+        return "failed", allowed
+    band = max(AMBIGUOUS_BAND, tol_abs)
+    if abs(distance - ref_distance) > allowed:
+        return "wrong", allowed
+    if ref_signed > band and status == "overlapping":
+        return "wrong", allowed
+    if ref_signed < -band and status != "overlapping":
+        return "wrong", allowed
+    return "ok", allowed
+
+
+def run_cases(cases: list[Case], engines: dict, progress: bool = False) -> pd.DataFrame:
+    rows = []
+    for ci, case in enumerate(cases):
+        refs = []
+        for pa, pb in case.poses:
+            try:
+                refs.append(reference_distance(case.a, case.b, pa, pb))
+            except Exception as exc:  # a reference failure skips the pose, never the run
+                refs.append(exc)
+        for name, engine in engines.items():
+            try:
+                prepared = engine.prepare(case.a, case.b)
+            except Exception as exc:
+                prepared = None
+                prep_error = f"{type(exc).__name__}: {exc}"
+            try:
+                for k, ((pa, pb), ref) in enumerate(zip(case.poses, refs)):
+                    row = dict(family=case.family, case=case.case, param=case.param, pose=k, engine=name)
+                    if isinstance(ref, Exception):
+                        rows.append({**row, "verdict": "no_reference", "message": str(ref)})
+                        continue
+                    extent = float(np.abs(case.a.vertices).max() + np.abs(case.b.vertices).max()
+                                   + np.abs(pa[:3, 3]).max() + np.abs(pb[:3, 3]).max())
+                    row.update(ref_distance=ref.distance, ref_signed=ref.signed_distance, ref_status=ref.status)
+                    if prepared is None:
+                        res_status, dist, raw, msg, dt = "failed", float("nan"), float("nan"), prep_error, float("nan")
+                    else:
+                        try:
+                            t0 = time.perf_counter()
+                            r = prepared.query(pa, pb)
+                            dt = time.perf_counter() - t0
+                            res_status, dist, raw, msg = r.status, r.distance, r.raw_distance, r.message
+                        except Exception as exc:
+                            res_status, dist, raw, msg, dt = ("failed", float("nan"), float("nan"),
+                                                              f"{type(exc).__name__}: {exc}", float("nan"))
+                    v, allowed = verdict(name, res_status, dist, ref.distance, ref.signed_distance, extent)
+                    err = dist - ref.distance
+                    rows.append({**row, "distance": dist, "raw_distance": raw, "status": res_status,
+                                 "error": err, "abs_error": abs(err),
+                                 "rel_error": abs(err) / ref.distance if ref.distance > AMBIGUOUS_BAND else float("nan"),
+                                 "ref_depth": ref.depth, "allowed_error": allowed, "time_us": dt * 1e6,
+                                 "verdict": v, "message": msg})
+            finally:
+                if prepared is not None:
+                    try:
+                        prepared.close()
+                    except Exception:
+                        pass
+        if progress:
+            print(f"  [{ci + 1}/{len(cases)}] {case.family} {case.case} {case.param:g}", flush=True)
+    return pd.DataFrame(rows)
+
+
+def coal_dualitygap_engines(tolerances=DUALITY_TOLERANCES) -> dict:
+    """coal with the DualityGap + Relative convergence criterion at each gjk_tolerance."""
+    import coal
+
+    from harness.engines.coal_engine import CoalEngine
+
+    class CoalDualityGap(CoalEngine):
+        def __init__(self, tolerance: float):
+            super().__init__(tolerance=tolerance, name=f"coal-dg-rel-tol{tolerance:g}")
+            self._request.gjk_convergence_criterion = coal.GJKConvergenceCriterion.DualityGap
+            self._request.gjk_convergence_criterion_type = coal.GJKConvergenceCriterionType.Relative
+
+    engines = {}
+    for tol in tolerances:
+        e = CoalDualityGap(tol)
+        engines[e.name] = e
+    return engines
+
+
+def coal_sweep_cases(config: StabilityConfig, load_object) -> list[Case]:
+    """Separated link poses (gaps 1e-6 .. 1e-2 m) for the coal criterion sweep."""
+    rng = np.random.default_rng(config.seed + 2)
+    la, lb = (load_object(name) for name in config.links)
+    per = 3 if config.quick else 20
+    return [Case("coal_duality_gap", f"{config.links[0]}|{config.links[1]}", gap, la, lb,
+                 _random_placements(la, lb, gap, per, rng)) for gap in (1e-6, 1e-4, 1e-2)]
+
+
+def run(config: StabilityConfig, load_object, progress: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(main table over all families and ENGINES, coal duality-gap sweep table)."""
+    from harness.engines import ENGINE_FACTORIES, available_engines
+    from harness.engines.spq_engine import SpqEngine
+
+    names = config.engines or [e for e in ENGINES if e in ENGINE_FACTORIES]
+    engines = {}
+    for name in names:
+        try:
+            engines.update(available_engines([name]) if name != "spq" else {"spq": SpqEngine()})
+        except Exception as exc:  # a missing package drops its engine only
+            print(f"engine {name} skipped: {exc}")
+    try:
+        cases = build_cases(config, load_object) + fcl_gap_cases(config)
+        table = run_cases(cases, engines, progress)
+    finally:
+        for e in engines.values():
+            e.close()
+    sweep = pd.DataFrame()
+    if "coal" in engines or config.engines is None:
+        try:
+            dg = coal_dualitygap_engines(DUALITY_TOLERANCES_QUICK if config.quick else DUALITY_TOLERANCES)
+            dg = {"coal": available_engines(["coal"])["coal"], **dg}
+            sweep = run_cases(coal_sweep_cases(config, load_object), dg, progress)
+        except ImportError as exc:
+            print(f"coal sweep skipped: {exc}")
+    return table, sweep
+
+
+def summarize(table: pd.DataFrame, by=("engine",)) -> pd.DataFrame:
+    g = table.groupby(list(by), sort=False)
+    out = g.agg(n=("verdict", "size"),
+                ok=("verdict", lambda v: int((v == "ok").sum())),
+                wrong=("verdict", lambda v: int((v == "wrong").sum())),
+                failed=("verdict", lambda v: int((v == "failed").sum())),
+                max_abs_error=("abs_error", "max"),
+                max_rel_error=("rel_error", "max"),
+                median_time_us=("time_us", "median")).reset_index()
+    return out
+
+
+def coal_sweep_summary(sweep: pd.DataFrame) -> pd.DataFrame:
+    if sweep.empty:
+        return sweep
+    sep = sweep.ref_signed > AMBIGUOUS_BAND
+    false_ov = sep & (sweep.status == "overlapping")
+    false_contact = sep & (sweep.status != "failed") & (sweep.distance <= AMBIGUOUS_BAND)
+    s = sweep.assign(false_overlap=false_ov.astype(int), false_collision=false_contact.astype(int))
+    out = s.groupby("engine", sort=False).agg(
+        n=("verdict", "size"), false_collisions=("false_collision", "sum"), false_overlaps=("false_overlap", "sum"),
+        min_raw_distance=("raw_distance", "min"),
+        wrong=("verdict", lambda v: int((v == "wrong").sum())),
+        failed=("verdict", lambda v: int((v == "failed").sum())),
+        max_abs_error=("abs_error", "max"), median_time_us=("time_us", "median")).reset_index()
+    return out
+
+
+def fcl_gap_summary(table: pd.DataFrame) -> pd.DataFrame:
+    """Per engine and case of the fcl_box_gap_3 family: the answer furthest from the reference."""
+    t = table[(table.family == "fcl_box_gap_3")].dropna(subset=["abs_error"])
+    if t.empty:
+        return t
+    worst = t.loc[t.groupby(["engine", "case"], sort=False).abs_error.idxmax()]
+    counts = t.groupby(["engine", "case"], sort=False).agg(
+        n=("verdict", "size"), wrong=("verdict", lambda v: int((v == "wrong").sum()))).reset_index()
+    worst = worst[["engine", "case", "param", "ref_distance", "distance", "abs_error"]].rename(
+        columns={"param": "worst_param", "ref_distance": "worst_ref_distance", "distance": "worst_distance",
+                 "abs_error": "max_abs_error"})
+    return counts.merge(worst, on=["engine", "case"])
+
+
+FAMILY_NOTES = {
+    "touching": "Touching: B placed along the exact separation normal at 1e-4 .. 1e-12 m (unit boxes face to "
+                "face and randomly rotated, and two robot links). Below 1e-9 m any non-failed status is accepted "
+                "if the distance is within the engine's tolerance.",
+    "overlap_shallow": "Shallow overlaps: B pushed 1e-6 .. 1e-3 m past contact along the normal; scored on the "
+                       "status (overlapping expected when the depth exceeds the engine's tolerance).",
+    "overlap_deep": "Deep overlaps: B pushed by half the body size past contact.",
+    "scale": "Scales: the same pair and relative pose with every length multiplied by 1e-3 .. 1e3; compare "
+             "rel_error across the parameter (the scale).",
+    "far_from_origin": "Far from the origin: both bodies shifted by 1e4 m (random direction), gaps 1e-2 .. 1e-6 m; "
+                       "engines that transform vertices to world coordinates lose ~1e-12 m per ulp there.",
+    "flat_needle": "Flat (1 x 1 x 1e-4) and needle-like (1e-4 x 1e-4 x 1) boxes, random rotations, gaps 0.1 .. "
+                   "1e-6 m and a 1e-5 m overlap.",
+    "near_parallel": "Near-parallel faces: two unit boxes face to face, B tilted by 1e-3 .. 1e-9 rad (about an "
+                     "in-face axis and a diagonal one), gaps 1e-3 and 1e-6 m.",
+    "fcl_box_gap_3": "FCL 3.0 gap (NOTES 5, fcl issue #508): axis-aligned unit boxes translated by 1 + gap along "
+                     "x, y or z (param: the gap, 1, 2 or 3 m), boxes of sizes 1 and 2 aligned with a 3.0 m gap, B "
+                     "(size 2) rotated about z by 0 .. 90 degrees (param: degrees) or randomly at an exact 3.0 m "
+                     "gap.",
+}
