@@ -49,6 +49,15 @@ def cmd_crosscheck(args) -> int:
     write_table(summary, out, "crosscheck_summary", "Cross-check per engine and bucket", meta, notes)
     write_table(totals, out, "crosscheck_engines", "Cross-check per engine", meta, notes)
     write_table(worst, out, "crosscheck_worst", "Worst cases per engine (largest absolute errors)", meta)
+    if args.agreement_poses > 0:
+        agree = cc.agreement(config.objects, args.agreement_poses, args.seed, load_object, progress=not args.quiet)
+        write_table(agree, out, "crosscheck_agreement", "spq against coal on random poses", meta,
+                    f"spq batched and coal (gjk_tolerance 1e-8) on the same random poses; distances compared on "
+                    f"poses both call separated, statuses outside a {cc.AGREEMENT_TOL:g} m band around contact.")
+        print(f"\nspq vs coal on {int(agree.poses.sum())} random poses ({int(agree.results.sum())} results): "
+              f"max |difference| {agree.max_abs_difference.max():.2g} m, {int(agree.over_tolerance.sum())} over "
+              f"{cc.AGREEMENT_TOL:g} m, {int(agree.status_disagreements.sum())} status disagreements, "
+              f"{int(agree.spq_failed.sum())} spq failures")
     print(f"\n{len(table)} query results, {len(table.engine.unique())} engines, "
           f"{len(table) // max(len(table.engine.unique()), 1)} poses\n")
     print("Per engine and bucket (errors in m; relative errors on separated poses):")
@@ -396,6 +405,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("crosscheck", help="every engine on distance-controlled poses vs the exact reference")
     p.add_argument("--objects", nargs="+", help="dataset names or mesh/qhull paths (default: the built-in set)")
     p.add_argument("--per-bucket", type=int, default=1000, help="poses per distance bucket, over all pairs")
+    p.add_argument("--agreement-poses", type=int, default=500_000,
+                   help="random poses on which spq is also compared with coal (0: none)")
     p.add_argument("--buckets", nargs="+", help="bucket names (default: all)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--engines", nargs="+", help="engine names (default: all that import)")

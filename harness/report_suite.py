@@ -45,10 +45,19 @@ def crosscheck_section(out: Path) -> Section:
         paragraphs.append(
             f"{r.engine}: largest error {r.max_abs_error:.2g} m, mean signed error {r.mean_signed_error:.2g} m, "
             f"{int(r.false_overlaps)} false and {int(r.missed_overlaps)} missed overlaps, {int(r.failures)} failures.")
+    tables = []
+    if (out / "crosscheck_agreement.csv").exists():
+        agree = _read(out, "crosscheck_agreement.csv")
+        paragraphs.append(
+            f"spq against coal on {int(agree.poses.sum()):,} random poses ({int(agree.results.sum()):,} results): "
+            f"largest difference {agree.max_abs_difference.max():.2g} m on poses both call separated, "
+            f"{int(agree.over_tolerance.sum())} beyond 1e-7 m, {int(agree.status_disagreements.sum())} status "
+            f"disagreements outside the contact band, {int(agree.spq_failed.sum())} spq failures.")
+        tables.append(("spq against coal on random poses", agree))
     cols = ["engine", "n", "max_abs_error", "median_abs_error", "max_rel_error", "mean_signed_error",
             "max_witness_off_surface", "false_overlaps", "missed_overlaps", "failures"]
     return Section("Cross-check against the exact reference", paragraphs,
-                   [("Per engine (errors in m)", engines[cols]), ("Worst cases", worst)])
+                   [("Per engine (errors in m)", engines[cols]), ("Worst cases", worst), *tables])
 
 
 def bench_section(out: Path, suite: str, title: str) -> Section:
@@ -127,7 +136,8 @@ def stability_section(out: Path) -> Section:
 
 
 SUITES = [
-    Suite("crosscheck", lambda q: ["crosscheck", "--quiet"] + (["--per-bucket", "26"] if q else []),
+    Suite("crosscheck", lambda q: ["crosscheck", "--quiet"] + (["--per-bucket", "26", "--agreement-poses", "20000"]
+                                                                if q else []),
           crosscheck_section),
     Suite("bench pch", lambda q: ["bench", "pch", "--quiet"] + (["--poses", "2000", "--repeats", "1"] if q else []),
           lambda out: bench_section(out, "pch", "Throughput, PCH-PCH (every engine)")),

@@ -45,3 +45,11 @@ def test_status_verdicts_use_the_ambiguous_band():
     status = np.array(["overlapping", "separated", "separated", "overlapping", "overlapping", "separated", "failed"])
     assert list(cc.status_verdict(ref, status)) == [
         "false_overlap", "ok", "missed_overlap", "ok", "ok", "ok", "failed"]
+
+
+@pytest.mark.engines
+def test_spq_and_coal_agree_on_random_poses():
+    table = cc.agreement(["kuka_link_4", "panda_hand"], 4000, seed=1, load_object=load_object, progress=False)
+    assert table.results.sum() == 8000
+    assert (table.status_disagreements == 0).all() and (table.spq_failed == 0).all()
+    assert table.max_abs_difference.max() <= cc.AGREEMENT_TOL
