@@ -27,9 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+
 from scipy.spatial.transform import Rotation
 
 import spq
+from harness.report.charts import save_figure
 
 TOL = dict(tol=1e-13, rel_tol=1e-13)
 PAIRS = [("PCH", "PCH"), ("STP", "PCH"), ("STP", "STP"), ("CSE", "PCH"), ("CSE", "CSE")]
@@ -412,11 +414,7 @@ def plot_lipschitz(table: pd.DataFrame, path, title: str = "") -> None:
         ax.set_title(t)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, title)
 
 
 def plot_paths(paths: dict, path, title: str = "") -> None:
@@ -434,6 +432,4 @@ def plot_paths(paths: dict, path, title: str = "") -> None:
     ax.set_title(title or "parallel_faces: witness point on B")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)

@@ -70,7 +70,6 @@ def bench_section(out: Path, suite: str, title: str) -> Section:
 
 
 def support_section(out: Path) -> Section:
-    table = _read(out, "support_scaling.csv")
     slopes = _read(out, "support_scaling_slopes.csv")
     s = {(r.method, r["mode"]): r.loglog_slope for _, r in slopes.iterrows()}
     caption = ("Time per STP-BV support call (ns, log scale) against the feature count (log scale), varied by R on one "

@@ -18,6 +18,7 @@ import pandas as pd
 
 from spq.kernels.stp_batch import support_batch
 from spq.kernels.stp_support import METHOD_NAMES
+from harness.report.charts import save_figure
 from spq.shapes.stpbv import STPBV
 
 
@@ -119,6 +120,4 @@ def plot(table: pd.DataFrame, path) -> None:
     ax.set_title(f"STP-BV support scaling on {obj} ({table.points.iloc[0]} points, r = {table.r.iloc[0]} m, R varied)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)

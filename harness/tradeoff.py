@@ -22,6 +22,7 @@ import pandas as pd
 
 import spq
 from harness.bench import best_time
+from harness.report.charts import save_figure
 
 SEPARATED_BUCKETS = ("distant-1", "distant-0.5", "close-1e-1", "close-1e-2", "close-1e-3", "close-1e-4")
 FAIL_DISTANCE = 1e6  # m: |distance| above this is a failure (coal can return -DBL_MAX on a separated pose)
@@ -174,11 +175,7 @@ def plot_tradeoff(table: pd.DataFrame, path, title: str = "") -> None:
         ax.set_title(f"queries/s against {label.split(' (')[0]}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, title)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -333,8 +330,4 @@ def plot_rtradeoff(table: pd.DataFrame, path, facts: dict, pick=None, title: str
         ax.set_xlabel("big radius R (m, log; dotted: smallest admissible R)")
         ax.set_title(label.split(" (")[0])
         ax.grid(True, which="both", alpha=0.3)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, title)

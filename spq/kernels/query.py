@@ -28,7 +28,6 @@ from spq.kernels.gjk import (
     OVERLAPPING,
     SEPARATED,
     TOUCHING,
-    WORK_ROWS,
     _finish,
     certify_overlap,
     descend,
@@ -37,9 +36,7 @@ from spq.kernels.dispatch import support_local
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
 from spq.kernels.stp_support import (
-    F_BIG_R,
     F_R,
-    F_VERTICES,
     IDX_F,
     IDX_H,
     IDX_HULL,
