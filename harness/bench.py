@@ -41,14 +41,20 @@ def best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
     return best, out
 
 
-def _timed_rows(pair, poses_a, poses_b, repeats: int) -> list[dict]:
-    """Warm up (compilation, caches) on a few poses, then time the loop and, for spq, the batch."""
-    n = len(poses_a)
+def timing_modes(pair) -> list[tuple[str, object]]:
+    """(mode, distances function) pairs to time: the batch where the engine has one (spq), and the
+    leanest per-call loop."""
     modes = [("per-call", pair.distance_loop)]
     if hasattr(pair, "distance_batch"):
         modes.insert(0, ("batched", pair.distance_batch))
+    return modes
+
+
+def _timed_rows(pair, poses_a, poses_b, repeats: int) -> list[dict]:
+    """Warm up (compilation, caches) on a few poses, then time the loop and, for spq, the batch."""
+    n = len(poses_a)
     rows = []
-    for mode, fn in modes:
+    for mode, fn in timing_modes(pair):
         fn(poses_a[:8], poses_b[:8])
         seconds, dist = best_time(lambda: fn(poses_a, poses_b), repeats)
         rows.append({"mode": mode, "queries": n, "seconds": seconds, "queries_per_s": n / seconds,

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 import spq
-from harness.bench import best_time
+from harness.bench import best_time, timing_modes
 from harness.report.charts import save_figure
 
 SEPARATED_BUCKETS = ("distant-1", "distant-0.5", "close-1e-1", "close-1e-2", "close-1e-3", "close-1e-4")
@@ -98,10 +98,7 @@ def run_tradeoff(config: TradeoffConfig, load_object, progress: bool = False):
                 engine = others[name]
             pair = engine.prepare(a, b)
             try:
-                modes = [("per-call", pair.distance_loop)]
-                if hasattr(pair, "distance_batch"):
-                    modes.insert(0, ("batched", pair.distance_batch))
-                for mode, fn in modes:
+                for mode, fn in timing_modes(pair):
                     rows.append({"engine": name, "mode": mode, "tolerance": tol if tol is not None else np.nan,
                                  "rel_tol": tol if name == "spq" else np.nan, "swept": tol is not None,
                                  **_measure(pair, fn, suite, config.repeats)})
