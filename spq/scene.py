@@ -1,0 +1,484 @@
+"""Robot scenes: every pair of a robot's bodies, with the bounding volume chosen per pair.
+
+A :class:`Scene` holds a :class:`~spq.kinematics.RobotModel`, its bodies (one convex hull per link
+geometry, in metres, in the link frame through the geometry's origin) and the list of pairs to
+query. ``scene.distances(q)`` runs forward kinematics and every pair's GJK query in one compiled
+call and returns world-frame results.
+
+Bounding-volume policies, per body:
+
+- ``pch``: the polyhedral convex hull; ``stp``: the STP-BV of the hull's vertices with radii r, R;
+  ``cse``: the covering superellipsoid fit.
+- ``auto``: the body keeps both a PCH and an STP-BV; in each pair the side with fewer STP features
+  uses its STP-BV and the other its PCH (the paper's advice: one strictly convex side makes the
+  distance gradient continuous, and the PCH side is cheaper). Against a ``pch`` body an ``auto`` body
+  uses its STP-BV; against an ``stp`` or ``cse`` body, its PCH.
+- ``stp-both`` (scene-wide only): every body uses its STP-BV, for comparison.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from spq.kernels import kinds
+from spq.kernels import scene as kscene
+from spq.kernels.gjk import (
+    OUT_DISTANCE,
+    OUT_ITERATIONS,
+    OUT_LOWER,
+    OUT_NORMAL,
+    OUT_POINT_A,
+    OUT_POINT_B,
+    OUT_SIZE,
+    OUT_STATUS,
+    STATUS_NAMES,
+)
+from spq.kinematics import PRISMATIC, MeshGeometry, PrimitiveGeometry, RobotModel
+from spq.query import DEFAULT_MAX_ITER, DEFAULT_TOL_ABS, DEFAULT_TOL_REL, _check_tolerances
+from spq.shapes.polyhedron import Polyhedron
+from spq.shapes.stpbv import STPBV
+from spq.shapes.superellipsoid import Superellipsoid
+from spq.validation import as_pose, as_positive
+
+BODY_POLICIES = ("pch", "stp", "cse", "auto")
+SCENE_POLICIES = BODY_POLICIES + ("stp-both",)
+BV_KINDS = ("pch", "stp", "cse")
+DEFAULT_R_SMALL = 0.005  # m: r of the STP-BVs (Table I's value)
+DEFAULT_R_BIG = 2.0  # m: R of the STP-BVs
+PRUNED_STATUS = "pruned"
+
+
+def check_policy(policy: str, allowed=BODY_POLICIES, what: str = "policy") -> str:
+    if policy not in allowed:
+        raise ValueError(f"unknown {what} {policy!r}; choose one of {list(allowed)}")
+    return policy
+
+
+def choose_sides(policy_a: str, policy_b: str, features_a: int, features_b: int) -> tuple[str, str]:
+    """The bounding volumes ('pch' | 'stp' | 'cse') a pair of bodies uses, from their policies.
+
+    Explicit policies are kept. Two ``auto`` bodies: STP on the side with fewer STP features (A on a
+    tie), PCH on the other. One ``auto`` body: STP against a ``pch`` body, PCH against a strictly
+    convex one (``stp``, ``cse``)."""
+    check_policy(policy_a)
+    check_policy(policy_b)
+    if policy_a == "auto" and policy_b == "auto":
+        return ("stp", "pch") if features_a <= features_b else ("pch", "stp")
+    if policy_a == "auto":
+        return ("stp" if policy_b == "pch" else "pch"), policy_b
+    if policy_b == "auto":
+        return policy_a, ("stp" if policy_a == "pch" else "pch")
+    return policy_a, policy_b
+
+
+@dataclass(eq=False)
+class Body:
+    """One convex body of a scene: a hull riding on a link.
+
+    name: unique body name (the link name, suffixed when a link has several geometries); link:
+    index into ``model.link_names``; offset: 4x4 pose of the hull's frame in the link frame (m);
+    hull: the PCH; policy: one of BODY_POLICIES; stp / cse: the STP-BV and the covering
+    superellipsoid fit (FitResult: shape and its pose in the hull frame), built when the policy needs
+    them."""
+
+    name: str
+    link: int
+    offset: np.ndarray
+    hull: Polyhedron
+    policy: str
+    stp: STPBV | None = None
+    cse: object | None = None
+    source: str = ""
+
+    @property
+    def stp_features(self) -> int:
+        return self.stp.n_patches if self.stp is not None else 0
+
+
+@dataclass(eq=False)
+class SceneDistances:
+    """Every queried pair's result for one configuration (world frame, metres).
+
+    pairs: (npairs, 2) body indices; distance (npairs,) (inf for a pruned pair); point_a, point_b,
+    normal (npairs, 3); status (npairs,) str, one of STATUS_NAMES or 'pruned'; iterations;
+    lower_bound (the sphere gap for a pruned pair); pruned (npairs,) bool."""
+
+    pairs: np.ndarray
+    distance: np.ndarray
+    point_a: np.ndarray
+    point_b: np.ndarray
+    normal: np.ndarray
+    status: np.ndarray
+    iterations: np.ndarray
+    lower_bound: np.ndarray
+    pruned: np.ndarray = field(default=None)
+
+    @classmethod
+    def from_out(cls, pairs: np.ndarray, out: np.ndarray) -> "SceneDistances":
+        code = out[:, OUT_STATUS].astype(np.int64)
+        pruned = code == kscene.PRUNED
+        names = np.array(STATUS_NAMES + (PRUNED_STATUS,))
+        return cls(pairs, out[:, OUT_DISTANCE].copy(), out[:, OUT_POINT_A:OUT_POINT_A + 3].copy(),
+                   out[:, OUT_POINT_B:OUT_POINT_B + 3].copy(), out[:, OUT_NORMAL:OUT_NORMAL + 3].copy(),
+                   names[np.where(pruned, len(STATUS_NAMES), code)], out[:, OUT_ITERATIONS].astype(np.int64),
+                   out[:, OUT_LOWER].copy(), pruned)
+
+    @property
+    def min_index(self) -> int:
+        """Index of the pair with the smallest distance."""
+        return int(np.argmin(self.distance))
+
+    @property
+    def min_distance(self) -> float:
+        return float(self.distance.min())
+
+
+def _bounding_sphere(points: np.ndarray, grow: float) -> tuple[np.ndarray, float]:
+    """Centre (box centre) and radius of a sphere around points grown by ``grow``."""
+    c = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    return c, float(np.sqrt(((points - c) ** 2).sum(axis=1).max()) + grow)
+
+
+class Scene:
+    """A robot's bodies and the pairs queried between them (see the module docstring).
+
+    Parameters
+    ----------
+    model : RobotModel
+        Kinematics (links, joints, limits).
+    bodies : list of Body
+        Convex bodies with their policies; STP-BVs and fits are built here as the policies need.
+    policy : str
+        'stp-both' makes every body use its STP-BV; any other value is only a default recorded for
+        reporting (bodies keep their own policies).
+    r, R : float
+        Radii (m) of the STP-BVs (0 < r < R; R - r at least each hull's enclosing radius).
+    skip_adjacent : bool
+        Skip pairs of bodies on a link and its nearest ancestor link that has a body (they touch at
+        the joint by design), and bodies on the same link.
+    skip : iterable of (name, name)
+        More body pairs to skip.
+    base : 4x4
+        World pose of the root link.
+    tol, rel_tol, max_iter : GJK stopping rule, as in :func:`spq.distance`.
+    """
+
+    def __init__(self, model: RobotModel, bodies: list[Body], policy: str = "auto", r: float = DEFAULT_R_SMALL,
+                 R: float = DEFAULT_R_BIG, skip_adjacent: bool = True, skip=(), base=None,
+                 tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL, max_iter: int = DEFAULT_MAX_ITER):
+        check_policy(policy, SCENE_POLICIES, "scene policy")
+        self.model = model
+        self.bodies = list(bodies)
+        if not self.bodies:
+            raise ValueError("a scene needs at least one body")
+        names = [b.name for b in self.bodies]
+        if len(set(names)) != len(names):
+            raise ValueError(f"body names must be unique; got {names}")
+        self.policy = policy
+        self.r, self.R = as_positive(r, "r"), as_positive(R, "R")
+        if self.R <= self.r:
+            raise ValueError(f"R must be larger than r; got r={self.r}, R={self.R}")
+        self.base = np.eye(4) if base is None else as_pose(base, "base")
+        self._tol = _check_tolerances(tol, rel_tol, max_iter)
+        for b in self.bodies:
+            check_policy(b.policy)
+            if policy == "stp-both":
+                b.policy = "stp"
+        self._build_volumes()
+        self.pairs, self.pair_kinds = self._choose_pairs(skip_adjacent, skip)
+        self._pack()
+
+    # --- construction ---------------------------------------------------------------------------
+    @classmethod
+    def from_urdf(cls, urdf_path, convex_dir=None, mesh_root=None, policy: str = "auto", policies=None,
+                  **options) -> "Scene":
+        """A scene from a URDF: one body per geometry of each link (collision, else visual).
+
+        convex_dir: a directory of qhull ``o f`` hulls named ``NAME-ch.txt`` after each mesh file
+        ``NAME.ext`` (as in the JVRC-1 data); a mesh with no such file raises ValueError. Without
+        it the hull of the mesh's vertices is used: ``package://PKG/REST`` resolves to
+        ``mesh_root/REST`` (mesh_root defaults to the URDF's directory), a relative path to the
+        URDF's directory. Primitives become hulls too: a box its 8 corners, a cylinder a
+        PRIMITIVE_SEGMENTS-gon prism and a sphere an icosphere, both circumscribing the true shape
+        (so the distance is never larger than the primitive's). policy: scene policy (see SCENE_POLICIES) and every body's default;
+        policies: {body name: policy} overrides. options: as for :class:`Scene`.
+        """
+        from spq.io.urdf import read_urdf
+
+        check_policy(policy, SCENE_POLICIES, "scene policy")
+        model = read_urdf(urdf_path)
+        urdf_dir = Path(urdf_path).resolve().parent
+        default = "stp" if policy == "stp-both" else policy
+        policies = dict(policies or {})
+        bodies = []
+        for link, geoms in enumerate(model.link_geometry):
+            for k, geom in enumerate(geoms):
+                name = model.link_names[link] + (f"#{k}" if len(geoms) > 1 else "")
+                if isinstance(geom, MeshGeometry):
+                    hull, source = _load_hull(geom.filename, geom.scale, convex_dir, mesh_root, urdf_dir,
+                                              model.link_names[link])
+                else:
+                    hull, source = _primitive_hull(geom), f"{geom.kind} {list(np.round(geom.size, 6))}"
+                bodies.append(Body(name, link, np.asarray(geom.origin, dtype=np.float64), hull, default,
+                                   source=source))
+        unknown = set(policies) - {b.name for b in bodies}
+        if unknown:
+            raise ValueError(f"policies name unknown bodies {sorted(unknown)}; bodies: {[b.name for b in bodies]}")
+        for b in bodies:
+            b.policy = check_policy(policies.get(b.name, b.policy))
+        return cls(model, bodies, policy=policy, **options)
+
+    def _build_volumes(self) -> None:
+        for b in self.bodies:
+            if b.policy in ("stp", "auto") and b.stp is None:
+                try:
+                    b.stp = STPBV.from_points(b.hull.vertices, self.r, self.R)
+                except ValueError as exc:
+                    raise ValueError(f"body {b.name!r}: {exc}") from None
+            if b.policy == "cse" and b.cse is None:
+                b.cse = Superellipsoid.fit(b.hull.vertices)
+
+    def _adjacent_links(self) -> set[tuple[int, int]]:
+        """(link, nearest ancestor link with a body) pairs, both orders."""
+        has_body = {b.link for b in self.bodies}
+        out = set()
+        for link in has_body:
+            a = self.model.parent[link]
+            while a >= 0 and a not in has_body:
+                a = self.model.parent[a]
+            if a >= 0:
+                out |= {(link, int(a)), (int(a), link)}
+        return out
+
+    def _choose_pairs(self, skip_adjacent: bool, skip) -> tuple[np.ndarray, list[tuple[str, str]]]:
+        index = {b.name: i for i, b in enumerate(self.bodies)}
+        skipped = set()
+        for pair in skip:
+            try:
+                na, nb = pair
+            except (TypeError, ValueError):
+                raise ValueError(f"skip entries must be (body, body) pairs; got {pair!r}") from None
+            for n in (na, nb):
+                if n not in index:
+                    raise ValueError(f"skip names unknown body {n!r}; bodies: {list(index)}")
+            skipped |= {(index[na], index[nb]), (index[nb], index[na])}
+        adjacent = self._adjacent_links() if skip_adjacent else set()
+        pairs, kinds_ = [], []
+        for i, a in enumerate(self.bodies):
+            for j in range(i + 1, len(self.bodies)):
+                b = self.bodies[j]
+                if (i, j) in skipped:
+                    continue
+                if skip_adjacent and (a.link == b.link or (a.link, b.link) in adjacent):
+                    continue
+                pairs.append((i, j))
+                kinds_.append(choose_sides(a.policy, b.policy, a.stp_features, b.stp_features))
+        return np.array(pairs, dtype=np.int64).reshape(-1, 2), kinds_
+
+    def _pack(self) -> None:
+        """Flat slot and pair arrays for the compiled call."""
+        slot_of = {}
+        link, offset, kind, margin, frange, irange, centre, radius = [], [], [], [], [], [], [], []
+        fparts, iparts = [], []
+        fpos = ipos = 0
+        for pair, sides in zip(self.pairs, self.pair_kinds):
+            for bi, bv in zip(pair, sides):
+                if (bi, bv) in slot_of:
+                    continue
+                body = self.bodies[bi]
+                shape, local = self._volume(body, bv)
+                kd = shape.kernel_data()
+                slot_of[(bi, bv)] = len(link)
+                link.append(body.link)
+                offset.append(body.offset @ local)
+                kind.append(kd.kind)
+                margin.append(kd.margin)
+                frange.append((fpos, fpos + len(kd.fdata)))
+                irange.append((ipos, ipos + len(kd.idata)))
+                fpos += len(kd.fdata)
+                ipos += len(kd.idata)
+                fparts.append(kd.fdata)
+                iparts.append(kd.idata)
+                if bv == "cse":
+                    c, rad = np.zeros(3), shape.bounding_radius()
+                elif bv == "stp":
+                    c, rad = _bounding_sphere(shape.topology.vertices, shape.r)
+                else:
+                    c, rad = _bounding_sphere(shape.vertices, kd.margin)
+                centre.append(c)
+                radius.append(rad)
+        ns = len(link)
+        self._slot_link = np.array(link, dtype=np.int64)
+        self._slot_offset = np.ascontiguousarray(np.array(offset, dtype=np.float64).reshape(ns, 4, 4))
+        self._slot_kind = np.array(kind, dtype=np.int64)
+        self._slot_margin = np.array(margin, dtype=np.float64)
+        self._slot_frange = np.array(frange, dtype=np.int64).reshape(ns, 2)
+        self._slot_irange = np.array(irange, dtype=np.int64).reshape(ns, 2)
+        self._fpool = np.ascontiguousarray(np.concatenate(fparts) if fparts else np.zeros(0))
+        self._ipool = np.ascontiguousarray(np.concatenate(iparts) if iparts else np.zeros(0, dtype=np.int64),
+                                           dtype=np.int64)
+        self._slot_centre = np.array(centre, dtype=np.float64).reshape(ns, 3)
+        self._slot_radius = np.array(radius, dtype=np.float64)
+        self._pair_slots = np.array([[slot_of[(a, sa)], slot_of[(b, sb)]]
+                                     for (a, b), (sa, sb) in zip(self.pairs, self.pair_kinds)],
+                                    dtype=np.int64).reshape(-1, 2)
+        self.reset()
+
+    @staticmethod
+    def _volume(body: Body, bv: str):
+        """(shape, pose of the shape's frame in the hull frame) of a body's bounding volume."""
+        if bv == "pch":
+            return body.hull, np.eye(4)
+        if bv == "stp":
+            return body.stp, np.eye(4)
+        return body.cse.shape, np.asarray(body.cse.pose, dtype=np.float64)
+
+    # --- queries --------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget every pair's warm start."""
+        tol, rel_tol, max_iter = self._tol
+        self._pair_ints, self._pair_floats = kscene.pack_pair_state(
+            self._slot_kind, self._slot_margin, self._pair_slots, tol, rel_tol, max_iter)
+
+    @property
+    def body_names(self) -> list[str]:
+        return [b.name for b in self.bodies]
+
+    @property
+    def pair_names(self) -> list[tuple[str, str]]:
+        return [(self.bodies[a].name, self.bodies[b].name) for a, b in self.pairs]
+
+    def kind_counts(self) -> dict[str, int]:
+        """How many queried pairs use each combination of bounding volumes, e.g. {'stp-pch': 500}."""
+        out: dict[str, int] = {}
+        for sa, sb in self.pair_kinds:
+            key = "-".join(sorted((sa, sb), key=BV_KINDS.index, reverse=True))
+            out[key] = out.get(key, 0) + 1
+        return out
+
+    def random_configuration(self, rng) -> np.ndarray:
+        """Joint values drawn uniformly within the limits (numpy Generator)."""
+        return self.model.random_configuration(rng)
+
+    def _run(self, qs: np.ndarray, coherent: bool, prune: float) -> np.ndarray:
+        out = np.empty((len(qs), len(self.pairs), OUT_SIZE))
+        m = self.model
+        kscene.scene_distances(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
+                               m.q_offset, self.base, qs,
+                               self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin,
+                               self._slot_frange, self._slot_irange, self._fpool, self._ipool, self._slot_centre,
+                               self._slot_radius, self._pair_slots, self._pair_ints, self._pair_floats,
+                               bool(coherent), float(prune), out)
+        return out
+
+    def _check_prune(self, prune) -> float:
+        prune = 0.0 if prune is None else float(prune)
+        if not math.isfinite(prune) or prune < 0.0:
+            raise ValueError(f"prune must be None or a finite distance >= 0 (m); got {prune}")
+        return prune
+
+    def distances(self, q, coherent: bool = True, prune: float | None = None) -> SceneDistances:
+        """Every queried pair's distance, witness points and status at joint configuration q.
+
+        coherent: start each pair from its last simplex when its relative pose moved little (along a
+        trajectory); False starts every pair cold. prune: skip pairs whose bounding spheres are more
+        than this far apart (m); None queries every pair. Raises ValueError for a q of the wrong
+        length, with NaN/inf, or outside the joint limits."""
+        q = self.model.check_configuration(q)
+        out = self._run(q[None], coherent, self._check_prune(prune))
+        return SceneDistances.from_out(self.pairs, out[0])
+
+    def distances_many(self, qs, coherent: bool = False, prune: float | None = None) -> np.ndarray:
+        """Raw results (N, npairs, OUT_SIZE; columns as spq.kernels.gjk.OUT_*) for N configurations
+        (N, ndof) in one compiled call; coherent carries warm starts from one to the next."""
+        qs = np.atleast_2d(np.asarray(qs, dtype=np.float64))
+        checked = self.model.check_configurations(qs)
+        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune))
+
+    def link_poses(self, q) -> np.ndarray:
+        """(nlinks, 4, 4) world poses of the links at q."""
+        return self.model.link_poses(q, base=self.base)
+
+    def body_poses(self, q) -> np.ndarray:
+        """(nbodies, 4, 4) world poses of the bodies' hull frames at q."""
+        links = self.link_poses(q)
+        return np.array([links[b.link] @ b.offset for b in self.bodies])
+
+    def distance_gradient(self, q, result: SceneDistances, index: int) -> np.ndarray:
+        """Gradient (ndof,) of pair ``index``'s distance with respect to the joint values, at q.
+
+        d d / d q_j = n . (v_B - v_A), where n is the unit normal from A's witness point to B's and
+        v_X is the velocity of X's witness point (fixed to its body) under a unit rate of joint j.
+        Undefined (NaN) for an overlapping or pruned pair."""
+        q = self.model.check_configuration(q)
+        grad = np.zeros(len(q))
+        if result.status[index] not in ("separated", "touching"):
+            return grad * np.nan
+        links = self.link_poses(q)
+        n = result.normal[index]
+        m = self.model
+        for body, point, sign in ((self.pairs[index, 0], result.point_a[index], -1.0),
+                                  (self.pairs[index, 1], result.point_b[index], 1.0)):
+            link = self.bodies[body].link
+            while link >= 0:
+                j = m.q_index[link]
+                if j >= 0:
+                    par = m.parent[link]
+                    frame = (links[par] if par >= 0 else self.base) @ m.joint_origin[link]
+                    axis = frame[:3, :3] @ m.joint_axis[link]
+                    v = axis if m.joint_type[link] == PRISMATIC else np.cross(axis, point - frame[:3, 3])
+                    grad[j] += sign * m.q_multiplier[link] * float(n @ v)
+                link = m.parent[link]
+        return grad
+
+
+def _load_hull(filename: str, scale, convex_dir, mesh_root, urdf_dir: Path, link: str) -> tuple[Polyhedron, str]:
+    """The convex hull of one URDF mesh geometry (scaled), from convex_dir or from the mesh."""
+    stem = Path(filename.split("://", 1)[-1]).stem
+    scale = np.asarray(scale if scale is not None else (1.0, 1.0, 1.0), dtype=np.float64)
+    if convex_dir is not None:
+        path = Path(convex_dir) / f"{stem}-ch.txt"
+        if not path.is_file():
+            raise ValueError(f"link {link!r} names mesh {filename!r} but {path} does not exist; convex_dir must "
+                             f"hold a qhull file NAME-ch.txt for every mesh NAME.ext")
+        hull = Polyhedron.from_qhull_file(path)
+    else:
+        if filename.startswith("package://"):
+            rest = filename[len("package://"):].split("/", 1)[-1]
+            path = Path(mesh_root or urdf_dir) / rest
+        elif filename.startswith("file://"):
+            path = Path(filename[len("file://"):])
+        else:
+            path = urdf_dir / filename
+        if not path.is_file():
+            raise ValueError(f"link {link!r} names mesh {filename!r}, not found at {path}; give mesh_root (the "
+                             f"package directory) or convex_dir")
+        hull = Polyhedron.from_mesh(path)
+    if not np.allclose(scale, 1.0):
+        hull = Polyhedron.from_points(hull.vertices * scale)
+    return hull, str(path)
+
+
+PRIMITIVE_SEGMENTS = 64  # sides of a cylinder's polygon; a circumscribed polygon overshoots by 1 - cos(pi/64) = 0.12%
+
+
+def _primitive_hull(geom: PrimitiveGeometry) -> Polyhedron:
+    """Hull of a URDF box, sphere or cylinder, circumscribing the true shape (see Scene.from_urdf)."""
+    import trimesh
+
+    size = np.asarray(geom.size, dtype=np.float64)
+    if geom.kind == "box":
+        return Polyhedron.from_points(trimesh.creation.box(extents=size).vertices)
+    if geom.kind == "sphere":
+        ico = trimesh.creation.icosphere(subdivisions=3)
+        inscribed = np.min(np.abs(ico.face_normals * ico.triangles_center).sum(axis=1))
+        return Polyhedron.from_points(ico.vertices * (size[0] / inscribed))
+    if geom.kind == "cylinder":
+        grow = 1.0 / np.cos(np.pi / PRIMITIVE_SEGMENTS)
+        cyl = trimesh.creation.cylinder(radius=size[0] * grow, height=size[1], sections=PRIMITIVE_SEGMENTS)
+        return Polyhedron.from_points(cyl.vertices)
+    raise ValueError(f"unsupported primitive geometry {geom.kind!r}; supported: box, sphere, cylinder")
