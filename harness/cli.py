@@ -146,6 +146,8 @@ def cmd_bench(args) -> int:
 
     if args.suite == "table1":
         return cmd_table1(args)
+    if args.suite == "robot":
+        return cmd_bench_robot(args)
     pairs = {"pch": ["PCH-PCH"], "stp": ["PCH-PCH", "STP-PCH", "STP-STP"]}[args.suite]
     config = bench.BenchConfig(object_name=args.object, poses=args.poses, seed=args.seed,
                                translation_range=args.range, repeats=args.repeats, engines=args.engines,
@@ -163,6 +165,47 @@ def cmd_bench(args) -> int:
         notes += f" STP-BV built from the link's hull vertices with r = {args.r} m, R = {args.R} m."
     write_table(table, Path(args.out), f"bench_{args.suite}", f"Throughput ({args.suite})", meta, notes)
     _print(table[["pair", "engine", "mode", "queries_per_s", "ratio_to_coal_pch", "features", "overlapping"]])
+    return 0
+
+
+def cmd_bench_robot(args) -> int:
+    from harness import robot_bench as rb
+    from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
+    from harness.report.meta import run_metadata
+    from harness.report.tables import write_table
+
+    config = rb.RobotBenchConfig(robot=args.robot, configurations=args.configs, steps=args.steps, seed=args.seed,
+                                 prune=args.prune, repeats=args.repeats, r=args.r, R=args.R,
+                                 engines=args.engines or ["coal", "fcl"], engine_configurations=args.engine_configs)
+    out = Path(args.out)
+    start = time.perf_counter()
+    tables = rb.run(config, out, progress=not args.quiet)
+    meta = run_metadata(command="spq bench robot", robot=args.robot, seed=args.seed, configurations=args.configs,
+                        trajectory_steps=args.steps, prune_m=args.prune, repeats=args.repeats, stp_r=args.r,
+                        stp_R=args.R, spq_tol_abs=DEFAULT_TOL_ABS, spq_tol_rel=DEFAULT_TOL_REL,
+                        engine_configurations=args.engine_configs or args.configs,
+                        seconds=round(time.perf_counter() - start, 1))
+    where = (f"{tables['robot']}: {tables['bodies']} bodies, {tables['pairs']} pairs (adjacent bodies skipped). "
+             f"{args.configs} random configurations within the joint limits (seed {args.seed}) and a {args.steps}-step "
+             "smooth trajectory. ")
+    write_table(tables["scene"], out, "robot_scene", "Robot scene: all pairs per configuration", meta,
+                where + f"Best of {args.repeats} runs of one compiled call over all configurations, per configuration; "
+                "forward kinematics included. cold: every pair starts cold; coherent: per-pair warm starts along the "
+                f"trajectory. pruning_m > 0: pairs whose bounding spheres are farther apart are skipped.")
+    write_table(tables["engines"], out, "robot_engines", "Robot scene: spq against coal and python-fcl", meta,
+                where + "Same PCH pairs at the same random configurations; the engines run one Python call per "
+                "pair, with the body poses computed beforehand (not timed). speedup_of_spq_auto: engine time / spq "
+                "auto cold time. max_abs_diff_vs_spq_m: over pairs spq calls separated.")
+    write_table(tables["continuity"], out, "robot_continuity", "Robot scene: gradient continuity along the trajectory",
+                meta, where + f"Closest pair among the pairs separated along the whole trajectory; the {rb.JUMP_CANDIDATES} steps "
+                f"with the largest relative gradient change (closest pair unchanged) are bisected {rb.BISECTIONS} times; "
+                f"a jump keeps over {rb.JUMP_RESIDUAL:g} of its change. "
+                f"pairs whose distance varies by less than {rb.MOVING_PAIR_M:g} m along the trajectory are left out.")
+    _print(tables["scene"][["policy", "configurations", "mode", "pruning_m", "ms_per_config", "pairs_per_s",
+                            "mean_iterations", "median_min_distance_m", "median_min_separated_m",
+                            "configs_with_overlap"]])
+    _print(tables["engines"])
+    _print(tables["continuity"])
     return 0
 
 
@@ -392,6 +435,53 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_scene(args) -> int:
+    from harness import scene_file as sf
+    from harness import scene_run as sr
+
+    start = time.perf_counter()
+    try:
+        spec = sf.read_scene_file(args.scene)
+        scene = sf.build_scene(spec)
+        qs = sf.scene_configurations(spec, scene.model)
+    except FileNotFoundError as exc:
+        print(f"spq scene: error: {exc}", file=sys.stderr)
+        return 2
+    urdf = scene.model.source or spec.urdf
+    overrides = "; per body: " + ", ".join(f"{k} = {v}" for k, v in spec.policies.items()) if spec.policies else ""
+    skipped = ("adjacent bodies skipped" if spec.skip_adjacent else "adjacent bodies queried") + (
+        f", {len(spec.skip_pairs)} more pair{'s' if len(spec.skip_pairs) != 1 else ''} skipped")
+    print(f"scene           {args.scene}")
+    print(f"robot           {spec.name} ({urdf}), {scene.model.ndof} joints")
+    print(f"bodies          {len(scene.bodies)}")
+    print(f"pairs           {len(scene.pairs)} ({skipped})")
+    print(f"pairs per BV    {', '.join(f'{k} {v}' for k, v in scene.kind_counts().items())}")
+    print(f"policy          {spec.policy}{overrides}; r = {spec.r:g} m, R = {spec.R:g} m")
+    print(f"poses           {spec.poses.describe()}")
+    print(f"built in {time.perf_counter() - start:.1f} s")
+
+    run = sr.run_scene(scene, qs, spec.poses.coherent, spec.poses.prune, progress=not args.quiet)
+    ms = run.seconds * 1e3
+    a, b = scene.pair_names[run.min_pair[run.closest]]
+    print(f"\nconfigurations  {run.configurations}")
+    print(f"time per config mean {ms.mean():.3g} ms, median {np.median(ms):.3g} ms (one call each)")
+    print(f"pairs per s     {run.configurations * len(scene.pairs) / run.seconds.sum():,.0f}")
+    print(f"min distance    {run.min_distance[run.closest]:.6g} m, {a} - {b} "
+          f"({run.min_status[run.closest]}), configuration {run.closest}")
+    print(f"overlaps        in {int(np.count_nonzero(run.overlapping))} of {run.configurations} configurations")
+    print(f"statuses        {', '.join(f'{k} {v}' for k, v in run.status_counts.items())}")
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        stem = Path(args.scene).stem
+        paths = (out / f"{stem}_configurations.csv", out / f"{stem}_closest_posture.csv")
+        sr.configurations_table(scene, run).to_csv(paths[0], index=False)
+        sr.closest_posture_table(scene, run).to_csv(paths[1], index=False)
+        print(f"wrote {paths[0]}, {paths[1]}")
+    print(f"done in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spq", description="Smooth Proximity Queries: measurements.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -427,9 +517,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_support_scaling)
 
     p = sub.add_parser("bench", help="throughput benchmarks")
-    p.add_argument("suite", choices=["pch", "stp", "table1"],
+    p.add_argument("suite", choices=["pch", "stp", "table1", "robot"],
                    help="pch: PCH-PCH, every engine; stp: STP-PCH and STP-STP (spq) beside PCH-PCH; "
-                        "table1: the paper's Table I, PCH/STP/CSE pairs with coal's PCH-PCH beside")
+                        "table1: the paper's Table I, PCH/STP/CSE pairs with coal's PCH-PCH beside; "
+                        "robot: all pairs of a robot per configuration, spq policies beside coal and fcl")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)
@@ -438,6 +529,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engines", nargs="+", help="engine names (default: all that import)")
     p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m), stp suite")
     p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m), stp suite")
+    p.add_argument("--robot", default="jvrc1", help="robot suite: a robot name (jvrc1, kuka_iiwa, panda)")
+    p.add_argument("--configs", type=int, default=1000, help="robot suite: random configurations")
+    p.add_argument("--steps", type=int, default=1000, help="robot suite: trajectory steps")
+    p.add_argument("--prune", type=float, default=0.05, help="robot suite: pruning threshold (m) of the pruned rows")
+    p.add_argument("--engine-configs", type=int, help="robot suite: configurations coal and fcl run (default: all)")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bench)
@@ -478,6 +574,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="small run (a few seconds)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_rtradeoff)
+
+    p = sub.add_parser("scene", help="a robot scene from a TOML file (scenes/*.toml): every pair over its configurations")
+    p.add_argument("scene", help="scene file (TOML; see scenes/ and harness/scene_file.py)")
+    p.add_argument("--out", help="folder for the per-configuration and closest-posture CSVs (default: none written)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_scene)
     return parser
 
 

@@ -16,6 +16,8 @@ from spq.query import (
     distance,
     distances,
 )
+from spq.kinematics import RobotModel
+from spq.scene import Body, Scene, SceneDistances
 from spq.shapes.base import Shape
 from spq.shapes.polyhedron import Polyhedron
 from spq.shapes.primitives import Box, Capsule, Sphere
@@ -28,4 +30,5 @@ __all__ = [
     "STATUS_NAMES", "DEFAULT_MAX_ITER", "DEFAULT_TOL_ABS", "DEFAULT_TOL_REL", "BatchDistances",
     "DistanceResult", "Pair", "distance", "distances", "Shape", "Polyhedron", "Box", "Capsule", "Sphere", "STPBV",
     "Superellipsoid", "Ellipsoid", "FitResult", "distance_gradient", "distance_gradients",
+    "RobotModel", "Scene", "SceneDistances", "Body",
 ]

@@ -185,7 +185,7 @@ class Pair:
             raise ValueError(f"poses_a and poses_b must have the same length N (or 1); got {len(pa)} and {len(pb)}")
         out = np.empty((n, OUT_SIZE))
         code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats, pa, pb,
-                              bool(coherent), out)
+                              bool(coherent), out, *kb.query_scratch())
         if code >= 0:
             _raise_pose_error(code % 100, code // 100)
         return BatchDistances(out)

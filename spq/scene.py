@@ -26,6 +26,7 @@ import numpy as np
 
 from spq.kernels import kinds
 from spq.kernels import scene as kscene
+from spq.kernels.batch import query_scratch
 from spq.kernels.gjk import (
     OUT_DISTANCE,
     OUT_ITERATIONS,
@@ -201,8 +202,8 @@ class Scene:
         convex_dir: a directory of qhull ``o f`` hulls named ``NAME-ch.txt`` after each mesh file
         ``NAME.ext`` (as in the JVRC-1 data); a mesh with no such file raises ValueError. Without
         it the hull of the mesh's vertices is used: ``package://PKG/REST`` resolves to
-        ``mesh_root/REST`` (mesh_root defaults to the URDF's directory), a relative path to the
-        URDF's directory. Primitives become hulls too: a box its 8 corners, a cylinder a
+        ``mesh_root/REST``, else ``mesh_root/PKG/REST`` (mesh_root defaults to the URDF's directory),
+        a relative path to the URDF's directory. Primitives become hulls too: a box its 8 corners, a cylinder a
         PRIMITIVE_SEGMENTS-gon prism and a sphere an icosphere, both circumscribing the true shape
         (so the distance is never larger than the primitive's). policy: scene policy (see SCENE_POLICIES) and every body's default;
         policies: {body name: policy} overrides. options: as for :class:`Scene`.
@@ -372,7 +373,8 @@ class Scene:
                                self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin,
                                self._slot_frange, self._slot_irange, self._fpool, self._ipool, self._slot_centre,
                                self._slot_radius, self._pair_slots, self._pair_ints, self._pair_floats,
-                               bool(coherent), float(prune), out)
+                               bool(coherent), float(prune), np.empty((m.nlinks, 4, 4)),
+                               np.empty((len(self._slot_link), 4, 4)), *query_scratch(), out)
         return out
 
     def _check_prune(self, prune) -> float:
@@ -448,14 +450,19 @@ def _load_hull(filename: str, scale, convex_dir, mesh_root, urdf_dir: Path, link
         hull = Polyhedron.from_qhull_file(path)
     else:
         if filename.startswith("package://"):
-            rest = filename[len("package://"):].split("/", 1)[-1]
-            path = Path(mesh_root or urdf_dir) / rest
+            full = filename[len("package://"):]
+            root = Path(mesh_root or urdf_dir)
+            # package://PKG/REST is mesh_root/REST; failing that, mesh_root/PKG/REST (pybullet's reading,
+            # which pybullet_data's Franka Panda needs: package://meshes/collision/link0.obj)
+            candidates = [root / full.split("/", 1)[-1], root / full]
         elif filename.startswith("file://"):
-            path = Path(filename[len("file://"):])
+            candidates = [Path(filename[len("file://"):])]
         else:
-            path = urdf_dir / filename
-        if not path.is_file():
-            raise ValueError(f"link {link!r} names mesh {filename!r}, not found at {path}; give mesh_root (the "
+            candidates = [urdf_dir / filename]
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is None:
+            looked = " or ".join(str(c) for c in dict.fromkeys(candidates))
+            raise ValueError(f"link {link!r} names mesh {filename!r}, not found at {looked}; give mesh_root (the "
                              f"package directory) or convex_dir")
         hull = Polyhedron.from_mesh(path)
     if not np.allclose(scale, 1.0):

@@ -59,3 +59,14 @@ def test_the_page_renders_in_headless_chromium_with_every_image(report_dir, tmp_
     shot = tmp_path / "report.png"
     subprocess.run([*base, "--window-size=1200,2400", f"--screenshot={shot}", url], capture_output=True, timeout=120)
     assert shot.stat().st_size > 50_000
+
+
+def test_the_robot_section_agrees_with_coal_and_shows_no_auto_gradient_jump(report_dir):
+    scene = pd.read_csv(report_dir / "robot_scene.csv")
+    assert set(scene.policy) == {"auto", "pch", "stp-both"} and (scene.failed == 0).all()
+    assert (scene.ms_per_config > 0).all()
+    engines = pd.read_csv(report_dir / "robot_engines.csv").set_index("engine")
+    assert engines.loc["coal", "max_abs_diff_vs_spq_m"] <= 1e-7
+    continuity = pd.read_csv(report_dir / "robot_continuity.csv")
+    auto = continuity[continuity.policy == "auto"]
+    assert (auto.gradient_jumps_same_pair == 0).all() and (auto.largest_residual_after_bisection < 0.5).all()

@@ -13,6 +13,7 @@ import numpy as np
 from spq.kernels.jit import kernel
 
 from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, WARM_COUNT, WARM_SIZE, WORK_ROWS
+from spq.kernels.borrow import borrowed
 from spq.kernels.query import gjk_query
 
 POSE_OK = 0
@@ -116,21 +117,30 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     t = np.empty(3)
     relative_pose(TA, TB, R, t)
     work = np.empty((WORK_ROWS, 4))
+    iwork = np.empty(WARM_SIZE, dtype=np.int64)
     keep_simplex_if_coherent(R, t, floats, ints[I_WARM:I_WARM + WARM_SIZE])
     gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
               floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], floats[F_DIR:F_DIR + 3],
-              ints[I_WARM:I_WARM + WARM_SIZE], work, out)
+              ints[I_WARM:I_WARM + WARM_SIZE], iwork, work, out)
     _to_world(TA, out)
     return POSE_OK
 
 
+def query_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Scratch arrays for a batched kernel: R (3, 3), t (3,), work (WORK_ROWS, 4), iwork int64 (WARM_SIZE,).
+
+    Allocated by the Python caller so that the kernel can borrow them (see spq.kernels.borrow)."""
+    return np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)), np.empty(WARM_SIZE, dtype=np.int64)
+
+
 @kernel
-def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out):
+def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R, t, work, iwork):
     """Queries for N pose pairs into out (N, OUT_SIZE). poses_a/poses_b: (N or 1, 4, 4), broadcast.
 
     coherent: carry the warm start (features, direction) from each query to the next, as along a
-    trajectory; otherwise every query starts cold. Returns -1 if every pose is valid, else the index
-    of the first bad pose times 100 plus its POSE_* code (+10 for B); nothing is computed then.
+    trajectory; otherwise every query starts cold. R, t, work, iwork: scratch from
+    :func:`query_scratch`. Returns -1 if every pose is valid, else the index of the first bad pose
+    times 100 plus its POSE_* code (+10 for B); nothing is computed then.
     """
     n = out.shape[0]
     na = poses_a.shape[0]
@@ -142,9 +152,17 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out):
         cb = check_pose(poses_b[q if nb > 1 else 0])
         if cb != POSE_OK:
             return q * 100 + 10 + cb
-    R = np.empty((3, 3))
-    t = np.empty(3)
-    work = np.empty((WORK_ROWS, 4))
+    _query_loop(borrowed(fA), borrowed(iA), borrowed(fB), borrowed(iB), borrowed(ints), borrowed(floats),
+                borrowed(poses_a), borrowed(poses_b), coherent, borrowed(out), borrowed(R), borrowed(t),
+                borrowed(work), borrowed(iwork))
+    return -1
+
+
+@kernel
+def _query_loop(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R, t, work, iwork):
+    n = out.shape[0]
+    na = poses_a.shape[0]
+    nb = poses_b.shape[0]
     warm = ints[I_WARM:I_WARM + WARM_SIZE]
     d = floats[F_DIR:F_DIR + 3]
     for q in range(n):
@@ -158,8 +176,5 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out):
             d[:] = 0.0
         row = out[q]
         gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
-                  floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, work, row)
+                  floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, iwork, work, row)
         _to_world(TA, row)
-    return -1
-
-

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from spq.kernels.jit import kernel
 
-from spq.kernels.kinds import POLYTOPE
+from spq.kernels.kinds import POINT, POLYTOPE
 from spq.kernels.dispatch import support_local
 
 SEPARATED = 0
@@ -43,7 +43,7 @@ OUT_LOWER = 10
 OUT_ITERATIONS = 11
 OUT_STATUS = 12
 OUT_SIZE = 13
-WORK_ROWS = 22  # rows of the (WORK_ROWS, 4) scratch array gjk_query takes
+WORK_ROWS = 26  # rows of the (WORK_ROWS, 4) scratch array gjk_query takes: 0-21 the descent's, 22-25 the patch finish's
 
 # Warm-start state, an int64 array: the last support features of A and B, then the final simplex
 # of the previous query as (count, 4 feature ids of A, 4 of B), re-evaluated at the new poses.
@@ -287,21 +287,39 @@ def _push(W, PA, PB, FI, k, pa, pb, warm):
     FI[1, k] = warm[WARM_FEATURE_B]
 
 
+@kernel(inline="always")
+def rebuildable(kind):
+    """Whether a warm-start simplex can be re-evaluated for this kind from feature ids alone."""
+    return kind == POLYTOPE or kind == POINT
+
+
 @kernel
-def _rebuild_simplex(fA, fB, R, t, W, PA, PB, FI, warm):
-    """The previous query's simplex, from its polytope vertex ids, at the current poses."""
-    k = warm[WARM_COUNT]
-    for i in range(k):
-        ia = warm[WARM_SIMPLEX_A + i]
-        ib = warm[WARM_SIMPLEX_B + i]
+def _corner(kind, f, i, c):
+    """Coordinate c of feature i of a rebuildable core (local frame): a vertex, or the origin."""
+    return f[3 * i + c] if kind == POLYTOPE else 0.0
+
+
+@kernel
+def _rebuild_simplex(kA, fA, kB, fB, R, t, W, PA, PB, FI, warm):
+    """The previous query's simplex, from its feature ids, at the current poses (repeats dropped)."""
+    k = 0
+    for i in range(warm[WARM_COUNT]):
+        ia = warm[WARM_SIMPLEX_A + i] if kA == POLYTOPE else 0
+        ib = warm[WARM_SIMPLEX_B + i] if kB == POLYTOPE else 0
+        repeated = False
+        for j in range(k):
+            if FI[0, j] == ia and FI[1, j] == ib:
+                repeated = True
+        if repeated:
+            continue
+        b0, b1, b2 = _corner(kB, fB, ib, 0), _corner(kB, fB, ib, 1), _corner(kB, fB, ib, 2)
         for c in range(3):
-            PA[i, c] = fA[3 * ia + c]
-        for r in range(3):
-            PB[i, r] = R[r, 0] * fB[3 * ib] + R[r, 1] * fB[3 * ib + 1] + R[r, 2] * fB[3 * ib + 2] + t[r]
-        for c in range(3):
-            W[i, c] = PA[i, c] - PB[i, c]
-        FI[0, i] = ia
-        FI[1, i] = ib
+            PA[k, c] = _corner(kA, fA, ia, c)
+            PB[k, c] = R[c, 0] * b0 + R[c, 1] * b1 + R[c, 2] * b2 + t[c]
+            W[k, c] = PA[k, c] - PB[k, c]
+        FI[0, k] = ia
+        FI[1, k] = ib
+        k += 1
     return k
 
 
@@ -390,8 +408,8 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
     lower = 0.0
     status = FAILED
     it = 0
-    if warm[WARM_COUNT] > 0 and kA == POLYTOPE and kB == POLYTOPE:
-        k = _rebuild_simplex(fA, fB, R, t, W, PA, PB, FI, warm)
+    if warm[WARM_COUNT] > 0 and rebuildable(kA) and rebuildable(kB):
+        k = _rebuild_simplex(kA, fA, kB, fB, R, t, W, PA, PB, FI, warm)
         k, inside = reduce_simplex(W, PA, PB, FI, k, lam, scratch)
         if inside:
             _save_simplex(FI, k, warm)

@@ -25,6 +25,10 @@ from spq.kernels.gjk import (
     OUT_POINT_B,
     FAILED,
     OUT_STATUS,
+    WARM_COUNT,
+    WARM_FEATURE_A,
+    WARM_SIMPLEX_A,
+    WARM_SIMPLEX_B,
     OVERLAPPING,
     SEPARATED,
     TOUCHING,
@@ -183,9 +187,12 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 tb0, tb1, tb2 = _to_a(R, t, cb0, cb1, cb2)
             tmp[0], tmp[1], tmp[2] = tb0 - ca0, tb1 - ca1, tb2 - ca2
             dirv[0], dirv[1], dirv[2] = n0, n1, n2
-            iscratch[:] = 0
+            # warm start: the polytope side's last support vertex and last simplex with the ball centre
+            point_side = 0 if kA == STP else 1
+            copy_point_simplex(warm, iscratch, point_side)
             status, k, v0, v1, v2, vv, lower, it = descend(core_a, fA, iA, core_b, fB, iB, R, tmp, tol_abs, tol_rel,
                                                            max_iter, dirv, iscratch, work)
+            copy_point_simplex(iscratch, warm, point_side)
             used += it
             if status != SEPARATED or math.sqrt(vv) <= margin_a2 + margin_b2 + tol_abs:
                 return -1
@@ -256,6 +263,22 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
 
 
 @kernel
+def copy_point_simplex(src, dst, point_side):
+    """Copy warm-start state src -> dst for a ball centre (side point_side, 0 = A) against a core:
+    the core side's support feature and the simplex, with the point side's ids set to 0. The point
+    side's own feature (an STP patch in ``warm``) is left alone."""
+    core_side = 1 - point_side
+    dst[WARM_FEATURE_A + core_side] = src[WARM_FEATURE_A + core_side]
+    k = src[WARM_COUNT]
+    dst[WARM_COUNT] = k
+    p0 = WARM_SIMPLEX_B if point_side else WARM_SIMPLEX_A
+    c0 = WARM_SIMPLEX_A if point_side else WARM_SIMPLEX_B
+    for i in range(k):
+        dst[p0 + i] = 0
+        dst[c0 + i] = src[c0 + i]
+
+
+@kernel
 def hull_core(k, m, f, ix):
     """(kind, margin, fdata, idata) of the shape to search first: for an STP-BV its underlying
     convex hull grown by r (a polytope, which the STP-BV contains and hugs within O(L^2 / rho));
@@ -267,12 +290,12 @@ def hull_core(k, m, f, ix):
 
 
 @kernel
-def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, work, out):
+def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, iwork, work, out):
     """Distance between core A (+ margin mA) and core B (+ margin mB), B at (R, t) in A's frame.
 
     dir_io: (3,) initial search direction (zero: from A's origin to B's), overwritten with the final
     closest-point direction for the next warm start. warm: int64 (WARM_SIZE,) warm-start state
-    (in/out; zeros for a cold start). work: (WORK_ROWS, 4) scratch. out: (OUT_SIZE,) result vector,
+    (in/out; zeros for a cold start). iwork: int64 (WARM_SIZE,) scratch. work: (WORK_ROWS, 4) scratch. out: (OUT_SIZE,) result vector,
     in A's frame. Returns the status code.
 
     With an STP-BV on either side: first the patches that faced each other in the last query; then
@@ -282,8 +305,9 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     """
     extra = 0
     if kA == STP or kB == STP:
-        scratch = np.zeros(warm.shape[0], dtype=np.int64)
-        fscratch = np.empty((4, 3))
+        scratch = iwork
+        scratch[:] = 0
+        fscratch = work[22:26, 0:3]
         n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
         if n > 0.0:  # coherence: the patches that faced each other last time
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
@@ -296,6 +320,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         status, k, v0, v1, v2, vv, lower, it = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs,
                                                        max(tol_rel, LOOSE_REL_TOL), max_iter, dir_io, scratch, work)
         extra = it
+        if (kA == STP) != (kB == STP):  # its simplex on the polytope side seeds the patch finish
+            copy_point_simplex(scratch, warm, 0 if kA == STP else 1)
         gap = math.sqrt(vv) - ma - mb
         if status == OVERLAPPING or (status != FAILED and gap < -tol_abs):
             # the grown hulls overlap, and each STP-BV contains its grown hull

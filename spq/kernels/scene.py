@@ -29,7 +29,8 @@ from spq.kernels.batch import (
     keep_simplex_if_coherent,
     relative_pose,
 )
-from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_STATUS, WARM_SIZE, WORK_ROWS
+from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_STATUS, WARM_SIZE
+from spq.kernels.borrow import borrowed
 from spq.kernels.jit import kernel
 from spq.kernels.kinematics import forward_kinematics
 from spq.kernels.query import gjk_query
@@ -61,7 +62,7 @@ def _sphere_gap(TA, ca, ra, TB, cb, rb):
 
 @kernel
 def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre,
-                   slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, out):
+                   slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out):
     """Every pair's query at the given slot world poses into out (npairs, OUT_SIZE), world frame.
 
     coherent: keep each pair's warm start if its relative pose moved little; otherwise cold.
@@ -94,31 +95,30 @@ def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpoo
         gjk_query(slot_kind[sa], floats[F_MARGIN_A], fpool[slot_frange[sa, 0]:slot_frange[sa, 1]],
                   ipool[slot_irange[sa, 0]:slot_irange[sa, 1]], slot_kind[sb], floats[F_MARGIN_B],
                   fpool[slot_frange[sb, 0]:slot_frange[sb, 1]], ipool[slot_irange[sb, 0]:slot_irange[sb, 1]],
-                  R, t, floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, work, row)
+                  R, t, floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, iwork, work, row)
         _to_world(TA, row)
 
 
 @kernel
-def scene_distances(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, qs, slot_link, slot_offset,
-                    slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre, slot_radius,
-                    pair_slots, pair_ints, pair_floats, coherent, prune, out):
+def scene_distances(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, qs,
+                    slot_link, slot_offset, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool,
+                    slot_centre, slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, links, poses,
+                    R, t, work, iwork, out):
     """All pairs for each of N joint configurations qs (N, ndof) into out (N, npairs, OUT_SIZE).
 
     Forward kinematics from ``base`` (4x4 world pose of the root link), slot poses, then every pair
     (see :func:`pairs_at_poses`); with coherent the warm starts carry from one configuration to the
-    next, as along a trajectory. Joint values are not checked here (the caller validates them)."""
-    nlinks = parent.shape[0]
-    links = np.empty((nlinks, 4, 4))
-    poses = np.empty((slot_link.shape[0], 4, 4))
-    R = np.empty((3, 3))
-    t = np.empty(3)
-    work = np.empty((WORK_ROWS, 4))
+    next, as along a trajectory. links (nlinks, 4, 4), poses (nslots, 4, 4), R, t, work, iwork:
+    scratch from the caller (see :func:`spq.kernels.batch.query_scratch`), which the kernel borrows.
+    Joint values are not checked here (the caller validates them)."""
+    b = borrowed
     for i in range(qs.shape[0]):
-        forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, qs[i], base,
-                           links)
-        slot_poses(links, slot_link, slot_offset, poses)
-        pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre,
-                       slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, out[i])
+        forward_kinematics(b(parent), b(joint_type), b(joint_origin), b(joint_axis), b(q_index), b(q_multiplier),
+                           b(q_offset), b(qs[i]), b(base), b(links))
+        slot_poses(b(links), b(slot_link), b(slot_offset), b(poses))
+        pairs_at_poses(b(poses), b(slot_kind), b(slot_margin), b(slot_frange), b(slot_irange), b(fpool), b(ipool),
+                       b(slot_centre), b(slot_radius), b(pair_slots), b(pair_ints), b(pair_floats), coherent, prune,
+                       b(R), b(t), b(work), b(iwork), b(out[i]))
 
 
 def pack_pair_state(slot_kind, slot_margin, pair_slots, tol_abs, tol_rel, max_iter):

@@ -1,0 +1,356 @@
+"""`spq bench robot`: whole-body self-distance of a robot, per configuration, against coal and python-fcl.
+
+Three measurements on one robot scene (JVRC-1 by default, every non-adjacent pair of its bodies):
+
+- spq's all-pairs time per configuration for each bounding-volume policy, cold on random
+  configurations and with per-pair warm starts along a smooth trajectory, with and without
+  bounding-sphere pruning (all pairs is the headline). Each figure is the best of ``repeats`` runs of
+  one compiled call over all configurations, divided by their number.
+- coal and python-fcl on the same PCH pairs at the same random configurations, from Python (one call
+  per pair), with forward kinematics done beforehand and not timed (which favours them); their
+  distances are compared with spq's PCH distances.
+- continuity along the trajectory: the distance gradient (w.r.t. the joints) of the closest pair, for
+  ``auto`` (an STP-BV on one side of every pair) and ``pch`` (PCH-PCH). The steps with the largest
+  gradient change (where the closest pair stays the same: when it changes, the minimum's gradient
+  jumps for any bounding volume) are bisected: a jump keeps its size down to a 1/1024 sub-step, a
+  continuous change shrinks with it. PCH-PCH gradients jump where the witness points jump across a
+  face or an edge (parallel features); with an STP-BV on one side they cannot.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from harness.robot_poses import random_configurations, smooth_trajectory
+from spq.kernels.gjk import OUT_DISTANCE, OUT_ITERATIONS, OUT_STATUS, OVERLAPPING, SEPARATED
+from spq.scene import Scene
+
+JUMP_CANDIDATES = 20  # the steps with the largest relative gradient change, tested by bisection
+BISECTIONS = 10  # halvings of a candidate step: a jump keeps its size, a continuous change shrinks ~1000x
+JUMP_RESIDUAL = 0.25  # a candidate whose change stays over this fraction of itself after bisection is a jump
+CONTINUITY_ZOOM = 10  # the continuity track samples the trajectory this many times finer (steps of ~0.01 rad)
+MOVING_PAIR_M = 1e-3  # m: pairs whose distance varies less along the trajectory are left out (nearly rigid)
+POLICIES = ("auto", "pch", "stp-both")
+
+
+@dataclass
+class RobotBenchConfig:
+    robot: str = "jvrc1"
+    configurations: int = 1000
+    steps: int = 1000
+    seed: int = 0
+    policies: tuple[str, ...] = POLICIES
+    prune: float = 0.05  # m: bounding-sphere pruning threshold of the "pruned" rows
+    repeats: int = 3
+    engines: list[str] = field(default_factory=lambda: ["coal", "fcl"])
+    engine_configurations: int | None = None  # configurations the engines run (None: all)
+    r: float = 0.005
+    R: float = 2.0
+    skip: list[tuple[str, str]] = field(default_factory=list)
+
+
+def load_scene(config: RobotBenchConfig, policy: str) -> Scene:
+    from datasets.robots import robot_files
+
+    files = robot_files(config.robot)
+    return Scene.from_urdf(files.urdf, convex_dir=files.convex_dir, mesh_root=files.mesh_root, policy=policy,
+                           r=config.r, R=config.R, skip=config.skip)
+
+
+def best_run(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None, repeats: int):
+    """(best seconds, raw results) of ``repeats`` runs of one call over qs, warm starts reset each time."""
+    scene.reset()
+    scene.distances_many(qs[:2], coherent=coherent, prune=prune)  # compile / load the kernels
+    best, out = np.inf, None
+    for _ in range(repeats):
+        scene.reset()
+        t0 = time.perf_counter()
+        out = scene.distances_many(qs, coherent=coherent, prune=prune)
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def summary_row(scene: Scene, policy: str, source: str, coherent: bool, prune, seconds: float,
+                out: np.ndarray) -> dict:
+    n, npairs = out.shape[0], out.shape[1]
+    status = out[:, :, OUT_STATUS]
+    dist = np.where(status == OVERLAPPING, 0.0, out[:, :, OUT_DISTANCE])
+    per_config_min = dist.min(axis=1)
+    separated_min = np.where(status == SEPARATED, dist, np.inf).min(axis=1)
+    computed = status >= 0
+    kinds = scene.kind_counts()
+    return {
+        "policy": policy, "pairs_by_bv": " ".join(f"{k} {v}" for k, v in kinds.items()),
+        "configurations": source, "mode": "coherent" if coherent else "cold",
+        "pruning_m": prune if prune else 0.0, "pairs": npairs,
+        "ms_per_config": 1e3 * seconds / n, "pairs_per_s": n * npairs / seconds,
+        "pairs_computed_pct": 100.0 * computed.mean(),
+        "mean_iterations": float(out[:, :, OUT_ITERATIONS][computed].mean()),
+        "median_min_distance_m": float(np.median(per_config_min)),
+        "median_min_separated_m": float(np.median(separated_min)),
+        "configs_with_overlap": int((status == OVERLAPPING).any(axis=1).sum()),
+        "mean_overlapping_pairs": float((status == OVERLAPPING).sum(axis=1).mean()),
+        "failed": int((status == 3).sum()),
+    }
+
+
+def scene_table(config: RobotBenchConfig, randoms: np.ndarray, trajectory: np.ndarray, progress: bool):
+    """spq rows for every policy x (random cold, trajectory coherent) x (all pairs, pruned); also
+    returns the scenes and the cold PCH and auto results on ``randoms`` for the engines and figures."""
+    from tqdm import tqdm
+
+    rows, scenes, results = [], {}, {}
+    jobs = [(p, src, coh, pr) for p in config.policies for src, coh in (("random", False), ("trajectory", True))
+            for pr in (None, config.prune)]
+    for policy, source, coherent, prune in tqdm(jobs, desc="bench robot", unit="run", disable=not progress):
+        if policy not in scenes:
+            scenes[policy] = load_scene(config, policy)
+        scene = scenes[policy]
+        qs = randoms if source == "random" else trajectory
+        seconds, out = best_run(scene, qs, coherent, prune, config.repeats)
+        rows.append(summary_row(scene, policy, source, coherent, prune, seconds, out))
+        if source == "random" and prune is None:
+            results[policy] = out
+    return pd.DataFrame(rows), scenes, results
+
+
+def engine_table(config: RobotBenchConfig, scene: Scene, qs: np.ndarray, spq_out: np.ndarray, spq_seconds: float,
+                 progress: bool) -> pd.DataFrame:
+    """coal and fcl over every pair of the scene (their PCHs) at qs, one Python call per query, against
+    spq's PCH results; spq_seconds: spq's cold time for the same configurations."""
+    from tqdm import tqdm
+
+    from harness.engines import available_engines
+
+    poses = np.array([scene.body_poses(q) for q in qs])  # (n, nbodies, 4, 4): not timed
+    status = spq_out[:, :, OUT_STATUS]
+    separated = status == SEPARATED
+    n, npairs = spq_out.shape[0], spq_out.shape[1]
+    rows = [{"engine": "spq (pch, batched)", "ms_per_config": 1e3 * spq_seconds / n,
+             "pairs_per_s": n * npairs / spq_seconds, "max_abs_diff_vs_spq_m": 0.0, "speedup_of_spq_auto": np.nan}]
+    for name, engine in available_engines(config.engines).items():
+        distances = np.empty((n, npairs))
+        seconds = 0.0
+        for p, (a, b) in enumerate(tqdm(scene.pairs, desc=name, unit="pair", disable=not progress)):
+            prepared = engine.prepare(scene.bodies[a].hull, scene.bodies[b].hull)
+            pa = np.ascontiguousarray(poses[:, a])
+            pb = np.ascontiguousarray(poses[:, b])
+            prepared.distance_loop(pa[:2], pb[:2])
+            t0 = time.perf_counter()
+            distances[:, p] = prepared.distance_loop(pa, pb)
+            seconds += time.perf_counter() - t0
+            prepared.close()
+        diff = np.abs(distances - spq_out[:, :, OUT_DISTANCE])[separated]
+        rows.append({"engine": name, "ms_per_config": 1e3 * seconds / n, "pairs_per_s": n * npairs / seconds,
+                     "max_abs_diff_vs_spq_m": float(diff.max()) if diff.size else np.nan,
+                     "speedup_of_spq_auto": np.nan})
+        engine.close()
+    return pd.DataFrame(rows)
+
+
+def gradient_track(scene: Scene, trajectory: np.ndarray, pairs: np.ndarray) -> dict:
+    """Along the trajectory (coherent), the closest of ``pairs`` at each step, its distance and its
+    distance gradient (steps, ndof) w.r.t. the joint values."""
+    scene.reset()
+    steps = len(trajectory)
+    closest = np.empty(steps, dtype=int)
+    dmin = np.empty(steps)
+    grads = np.empty((steps, scene.model.ndof))
+    for k, q in enumerate(trajectory):
+        result = scene.distances(q, coherent=True)
+        i = pairs[np.argmin(result.distance[pairs])]
+        closest[k], dmin[k] = i, result.distance[i]
+        grads[k] = scene.distance_gradient(q, result, int(i))
+    return {"closest": closest, "distance": dmin, "gradient": grads}
+
+
+def pair_gradient(scene: Scene, q: np.ndarray, pair: int) -> np.ndarray:
+    """Distance gradient (ndof,) of one pair at q, from a cold query."""
+    return scene.distance_gradient(q, scene.distances(q, coherent=False), pair)
+
+
+def bisect_change(scene: Scene, q0: np.ndarray, q1: np.ndarray, pair: int, levels: int = BISECTIONS) -> float:
+    """The part of the gradient change between q0 and q1 left in a 2^-levels sub-interval, after
+    following the larger half's change at each level: near 1 for a jump, near 2^-levels for a
+    continuous gradient."""
+    g0, g1 = pair_gradient(scene, q0, pair), pair_gradient(scene, q1, pair)
+    total = np.linalg.norm(g1 - g0)
+    if total == 0.0:
+        return 0.0
+    for _ in range(levels):
+        qm = 0.5 * (q0 + q1)
+        gm = pair_gradient(scene, qm, pair)
+        if np.linalg.norm(gm - g0) >= np.linalg.norm(g1 - gm):
+            q1, g1 = qm, gm
+        else:
+            q0, g0 = qm, gm
+    return float(np.linalg.norm(g1 - g0) / total)
+
+
+def gradient_jumps(scene: Scene, trajectory: np.ndarray, track: dict) -> dict:
+    """Jump statistics of a gradient track. Steps where the closest pair changes are counted apart.
+    Among the others, the JUMP_CANDIDATES largest relative changes (|change| / |gradient|) are bisected
+    (:func:`bisect_change`); a jump is one whose change stays over JUMP_RESIDUAL of itself."""
+    g = track["gradient"]
+    change = np.linalg.norm(np.diff(g, axis=0), axis=1)
+    norm = np.linalg.norm(g, axis=1)
+    relative = change / np.maximum(np.maximum(norm[1:], norm[:-1]), 1e-12)
+    switch = track["closest"][1:] != track["closest"][:-1]
+    same = np.flatnonzero(~switch)
+    candidates = same[np.argsort(-relative[same])[:JUMP_CANDIDATES]]
+    residual = np.array([bisect_change(scene, trajectory[k], trajectory[k + 1], int(track["closest"][k]))
+                         for k in candidates])
+    jumps = np.sort(candidates[residual > JUMP_RESIDUAL]) if len(candidates) else candidates
+    return {"closest_pair_switches": int(switch.sum()),
+            "median_relative_change": float(np.median(relative[same])) if same.size else np.nan,
+            "max_relative_change_same_pair": float(relative[same].max()) if same.size else np.nan,
+            "largest_residual_after_bisection": float(residual.max()) if residual.size else np.nan,
+            "gradient_jumps_same_pair": int(len(jumps)), "jump_steps": jumps + 1, "change": relative,
+            "switch": switch}
+
+
+def continuity_table(scenes: dict, trajectory: np.ndarray, policies=("auto", "pch")) -> tuple[pd.DataFrame, dict]:
+    """Gradient tracks along the trajectory for each policy: of the closest pair at each step, and of
+    one fixed pair (the one most often closest for PCH-PCH). Pairs considered: separated at every step
+    for every policy (an overlapping pair has no gradient) and moving (their distance varies by more
+    than MOVING_PAIR_M; pairs whose relative pose is fixed have zero gradient)."""
+    outs = {p: scenes[p].distances_many(trajectory, coherent=False) for p in policies}
+    keep = np.all([(o[:, :, OUT_STATUS] == SEPARATED).all(axis=0) for o in outs.values()], axis=0)
+    keep &= np.all([np.ptp(o[:, :, OUT_DISTANCE], axis=0) > MOVING_PAIR_M for o in outs.values()], axis=0)
+    pairs = np.flatnonzero(keep)
+    tracks, rows = {}, []
+    for p in policies:
+        tracks[p] = gradient_track(scenes[p], trajectory, pairs)
+    counts = np.bincount(tracks[policies[-1]]["closest"], minlength=len(keep))
+    fixed = int(np.argmax(counts))
+    names = scenes[policies[0]].pair_names[fixed]
+    for p in policies:
+        tracks[p].update(gradient_jumps(scenes[p], trajectory, tracks[p]))
+        tracks[p]["fixed"] = gradient_track(scenes[p], trajectory, np.array([fixed]))
+        tracks[p]["fixed"].update(gradient_jumps(scenes[p], trajectory, tracks[p]["fixed"]))
+        tracks[p]["fixed"]["name"] = f"{names[0]} - {names[1]}"
+        for what, tr in (("closest pair", tracks[p]), (f"{names[0]} - {names[1]}", tracks[p]["fixed"])):
+            rows.append({"policy": p, "track": what, "pairs_tracked": len(pairs) if what == "closest pair" else 1,
+                         "steps": len(trajectory),
+                         **{k: v for k, v in tr.items() if k in ("closest_pair_switches", "median_relative_change",
+                                                                 "max_relative_change_same_pair",
+                                                                 "largest_residual_after_bisection",
+                                                                 "gradient_jumps_same_pair")}})
+    return pd.DataFrame(rows), tracks
+
+
+def plot_distance_matrix(scene: Scene, q: np.ndarray, path: Path, policy: str) -> None:
+    """Heat map of every pair's distance at one posture; skipped pairs blank, overlaps black."""
+    from harness.report.charts import pyplot, save_figure
+
+    plt = pyplot()
+    result = scene.distances(q, coherent=False)
+    nb = len(scene.bodies)
+    matrix = np.full((nb, nb), np.nan)
+    for (a, b), d, s in zip(scene.pairs, result.distance, result.status):
+        matrix[a, b] = matrix[b, a] = 0.0 if s == "overlapping" else d
+    fig, ax = plt.subplots(figsize=(9, 8))
+    cmap = plt.get_cmap("viridis").with_extremes(bad="white")
+    image = ax.imshow(matrix, cmap=cmap, vmin=0.0, interpolation="nearest")
+    overl = np.argwhere(matrix == 0.0)
+    ax.scatter(overl[:, 1], overl[:, 0], marker="s", s=30, color="black", label="overlapping")
+    names = scene.body_names
+    ax.set_xticks(range(nb), names, rotation=90, fontsize=6)
+    ax.set_yticks(range(nb), names, fontsize=6)
+    fig.colorbar(image, ax=ax, label="distance (m)")
+    if len(overl):
+        ax.legend(loc="upper right", fontsize=7)
+    save_figure(fig, path, f"{scene.model.name}: pair distances at one random posture ({policy}; blank = skipped)")
+
+
+def plot_trajectory(tracks: dict, path: Path) -> None:
+    """Closest-pair distance and gradient norm, then one fixed pair's gradient norm and its change per
+    step, per policy."""
+    from harness.report.charts import pyplot, save_figure
+
+    plt = pyplot()
+    fig, axes = plt.subplots(4, 1, figsize=(9, 11), sharex=True)
+    colours = {"auto": "tab:blue", "pch": "tab:red", "stp-both": "tab:green"}
+    labels = {"auto": "auto (STP-BV on one side)", "pch": "PCH-PCH"}
+    for p, tr in tracks.items():
+        steps = np.arange(len(tr["distance"]))
+        colour, label = colours.get(p), labels.get(p, p)
+        axes[0].plot(steps, tr["distance"], color=colour, lw=1, label=label)
+        axes[1].plot(steps, np.linalg.norm(tr["gradient"], axis=1), color=colour, lw=1, label=label)
+        fixed = tr["fixed"]
+        axes[2].plot(steps, np.linalg.norm(fixed["gradient"], axis=1), color=colour, lw=1, label=label)
+        axes[3].semilogy(steps[1:], np.maximum(fixed["change"], 1e-6), color=colour, lw=0.8, label=label)
+        # jumps confirmed by bisection
+        jumps = fixed["jump_steps"]
+        axes[3].scatter(jumps, np.maximum(fixed["change"][jumps - 1], 1e-6), color=colour, s=14, marker="x")
+    first = next(iter(tracks.values()))
+    for k in np.flatnonzero(first["switch"]) + 1:
+        axes[1].axvline(k, color="0.85", lw=0.5, zorder=0)
+    axes[0].set_ylabel("min distance (m)")
+    axes[1].set_ylabel("|gradient| of the min\n(m/rad; grey: pair changes)")
+    axes[2].set_ylabel(f"|gradient| (m/rad)\n{first['fixed']['name']}")
+    axes[3].set_ylabel("|gradient change| per step\n(x: jumps)")
+    axes[3].set_xlabel("trajectory step")
+    axes[0].legend(fontsize=8)
+    save_figure(fig, path, "Minimum distance and its gradient along a smooth trajectory")
+
+
+def plot_engines(table: pd.DataFrame, engines: pd.DataFrame, path: Path) -> None:
+    """Side by side: ms per configuration of spq (each policy, cold and coherent) and the engines."""
+    from harness.report.charts import pyplot, save_figure
+
+    plt = pyplot()
+    full = table[table.pruning_m == 0.0]
+    labels = [f"spq {r.policy}\n{r.mode}" for r in full.itertuples()]
+    values = list(full.ms_per_config)
+    colours = ["tab:blue" if r.mode == "cold" else "tab:cyan" for r in full.itertuples()]
+    for r in engines.itertuples():
+        if r.engine.startswith("spq"):
+            continue
+        labels.append(f"{r.engine}\nPCH, cold")
+        values.append(r.ms_per_config)
+        colours.append("tab:gray")
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    ax.bar(range(len(values)), values, color=colours)
+    ax.set_yscale("log")
+    ax.set_xticks(range(len(values)), labels, fontsize=7)
+    ax.set_ylabel("ms per configuration (all pairs)")
+    for i, v in enumerate(values):
+        ax.text(i, v, f"{v:.2g}", ha="center", va="bottom", fontsize=7)
+    save_figure(fig, path, "All pairs per configuration: spq policies against coal and python-fcl (PCH pairs)")
+
+
+def run(config: RobotBenchConfig, out_dir: Path, progress: bool = True) -> dict:
+    """Every table and figure of the robot benchmark into out_dir; returns the tables."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    base = load_scene(config, "pch")
+    randoms = random_configurations(base.model, config.configurations, config.seed)
+    trajectory = smooth_trajectory(base.model, config.steps, config.seed)
+    table, scenes, results = scene_table(config, randoms, trajectory, progress)
+    pch = scenes.get("pch") or base
+    m = config.engine_configurations or config.configurations
+    pch_rows = table[(table.policy == "pch") & (table.configurations == "random") & (table.pruning_m == 0.0)]
+    pch_seconds = float(pch_rows.ms_per_config.iloc[0]) * 1e-3 * m if len(pch_rows) else np.nan
+    pch_out = results["pch"] if "pch" in results else best_run(pch, randoms, False, None, 1)[1]
+    engines = engine_table(config, pch, randoms[:m], pch_out[:m], pch_seconds, progress)
+    auto_rows = table[(table.policy == "auto") & (table.configurations == "random") & (table.pruning_m == 0.0)]
+    if len(auto_rows):
+        engines["speedup_of_spq_auto"] = engines.ms_per_config / float(auto_rows.ms_per_config.iloc[0])
+        engines.loc[engines.engine.str.startswith("spq"), "speedup_of_spq_auto"] = np.nan
+    scenes.setdefault("pch", pch)
+    if "auto" not in scenes:
+        scenes["auto"] = load_scene(config, "auto")
+    # the continuity track: the first 1/CONTINUITY_ZOOM of a trajectory sampled CONTINUITY_ZOOM times finer
+    fine = smooth_trajectory(base.model, config.steps * CONTINUITY_ZOOM, config.seed)[:config.steps]
+    continuity, tracks = continuity_table(scenes, fine)
+    plot_distance_matrix(scenes["auto"], randoms[0], out_dir / "robot_distance_matrix.png", "auto")
+    plot_trajectory(tracks, out_dir / "robot_trajectory.png")
+    plot_engines(table, engines, out_dir / "robot_engines.png")
+    return {"scene": table, "engines": engines, "continuity": continuity,
+            "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name}
