@@ -167,7 +167,10 @@ def robot_section(out: Path) -> Section:
         f"coal on the same PCH pairs, one Python call per pair: {coal_ms:.3g} ms per configuration, "
         f"{coal_ms / ms('pch', 'random'):.2g}x spq's PCH-PCH time and {coal_ms / ms('auto', 'random'):.2g}x spq's auto "
         f"time (target: 2x); largest difference from spq's PCH distances "
-        f"{float(coal.max_abs_diff_vs_spq_m.iloc[0]) if len(coal) else float('nan'):.2g} m.",
+        f"{float(coal.max_abs_diff_vs_spq_m.iloc[0]) if len(coal) else float('nan'):.2g} m."
+        + "".join(f" {r.engine}: {r.ms_per_config:.3g} ms, {int(r['results_off_by_over_0.1mm'])} results off spq's by "
+                  f"over 0.1 mm (largest {r.max_abs_diff_vs_spq_m:.2g} m)." for _, r in engines.iterrows()
+                  if r.engine not in ("coal",) and not r.engine.startswith("spq")),
         "Gradient jumps along the trajectory (closest pair unchanged, confirmed by bisection to 1/1024 of a step): "
         + "; ".join(f"{p} {jumps[(p, t)]} (largest residual {residual[(p, t)]:.2g})" for p, t in closest) + ".",
     ]

@@ -20,7 +20,7 @@ def _sign_half(h, d):
     return h if d >= 0.0 else -h
 
 
-@kernel
+@kernel(inline="always")
 def support_local(kind, f, ix, d0, d1, d2, warm, out):
     """Write the core support point along (d0, d1, d2) (local frame) into out[0:3].
 

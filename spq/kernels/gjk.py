@@ -264,7 +264,7 @@ def reduce_simplex(W, PA, PB, FI, k, lam, scratch):
 # ------------------------------------------------------------------------------------------
 # support of the Minkowski difference A - B, in A's frame
 # ------------------------------------------------------------------------------------------
-@kernel
+@kernel(inline="always")
 def minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tmp):
     """pa = s_A(d), pb = s_B(-d) (both in A's frame); warm[0], warm[1] updated with the features."""
     warm[0] = support_local(kA, fA, iA, d0, d1, d2, warm[0], pa)
@@ -277,7 +277,7 @@ def minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tm
         pb[r] = R[r, 0] * tmp[0] + R[r, 1] * tmp[1] + R[r, 2] * tmp[2] + t[r]
 
 
-@kernel
+@kernel(inline="always")
 def _push(W, PA, PB, FI, k, pa, pb, warm):
     for c in range(3):
         PA[k, c] = pa[c]
@@ -323,7 +323,7 @@ def _rebuild_simplex(kA, fA, kB, fB, R, t, W, PA, PB, FI, warm):
     return k
 
 
-@kernel
+@kernel(inline="always")
 def _save_simplex(FI, k, warm):
     warm[WARM_COUNT] = k
     for i in range(k):
@@ -331,7 +331,7 @@ def _save_simplex(FI, k, warm):
         warm[WARM_SIMPLEX_B + i] = int(FI[1, i])
 
 
-@kernel
+@kernel(inline="always")
 def _is_duplicate(PA, PB, k, pa, pb):
     for i in range(k):
         if (
@@ -379,7 +379,7 @@ def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, wa
 # ------------------------------------------------------------------------------------------
 # the query
 # ------------------------------------------------------------------------------------------
-@kernel
+@kernel(inline="always")
 def _combine(P, lam, k, out, offset):
     for c in range(3):
         s = 0.0

@@ -60,14 +60,14 @@ FINISH_ROUNDS = 8  # patch-pair corrections before falling back to the full desc
 
 
 @kernel
-def next_patch(f, ix, p, d0, d1, d2):
+def next_patch(f, ix, p, hint, d0, d1, d2):
     """The patch owning direction d: p itself, or p's neighbour across the boundary d violates (one
     guided-march step, which reaches the torus between two small spheres instead of jumping it);
-    p < 0: a fresh search."""
+    p < 0: a fresh search, starting from patch ``hint`` if >= 0 (the last query's)."""
     n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     u0, u1, u2 = d0 / n, d1 / n, d2 / n
     if p < 0:
-        q, _ = find_patch(f, ix, ix[IDX_METHOD], -1, u0, u1, u2)
+        q, _ = find_patch(f, ix, ix[IDX_METHOD], hint, u0, u1, u2)
         return q
     q = march_step(f, ix, _offsets(ix)[2], p, u0, u1, u2)
     return p if q < 0 else q
@@ -128,7 +128,7 @@ BALL_ALTERNATIONS = 60  # far-point alternations between two tori; each shrinks 
 
 @kernel
 def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
-                      iscratch, fscratch, out):
+                      iscratch, fscratch, coherent, out):
     """Try to settle the query on the balls of the STP patches facing along n (A's frame, A to B).
 
     Each round takes the facing patches (one guided-march step from the last ones), solves the
@@ -137,9 +137,12 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     |p_B - p_A| for points on the bodies, lower = the width of the slab between the support planes.
     Writes the result into out (A's frame) and returns the descent iterations used, or -1 if no
     round closed the gap. work: (WORK_ROWS, 4) scratch for the inner descent; iscratch: int64
-    (WARM_SIZE,) and fscratch: (4, 3) scratch of this function's own."""
+    (WARM_SIZE,) and fscratch: (4, 3) scratch of this function's own. coherent: the first search
+    starts from the patches in warm (the last query's)."""
     used = 0
     pa = pb = -1
+    hint_a = warm[0] if coherent and kA == STP else -1
+    hint_b = warm[1] if coherent and kB == STP else -1
     sa = fscratch[0]
     sb = fscratch[1]
     tmp = fscratch[2]
@@ -148,12 +151,12 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
         ca0 = ca1 = ca2 = cb0 = cb1 = cb2 = 0.0
         margin_a = margin_b = 0.0
         if kA == STP:
-            pa = next_patch(fA, iA, pa, n0, n1, n2)
+            pa = next_patch(fA, iA, pa, hint_a, n0, n1, n2)
             ca0, ca1, ca2, margin_a = ball_of_patch(fA, iA, pa, n0, n1, n2)
             warm[0] = pa
         e0, e1, e2 = _rot_to_b(R, -n0, -n1, -n2)
         if kB == STP:
-            pb = next_patch(fB, iB, pb, e0, e1, e2)
+            pb = next_patch(fB, iB, pb, hint_b, e0, e1, e2)
             cb0, cb1, cb2, margin_b = ball_of_patch(fB, iB, pb, e0, e1, e2)
             warm[1] = pb
         k = 0  # the ball-ball case has no core simplex
@@ -311,7 +314,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
         if n > 0.0:  # coherence: the patches that faced each other last time
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
-                                     dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, work, scratch, fscratch, out)
+                                     dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, work, scratch, fscratch, True,
+                                     out)
             if used >= 0:
                 return _done(out, used, dir_io)
         ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
@@ -331,7 +335,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         if status == SEPARATED and vv > 0.0:
             n = math.sqrt(vv)
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -v0 / n, -v1 / n, -v2 / n, tol_abs,
-                                     tol_rel, max_iter, warm, work, scratch, fscratch, out)
+                                     tol_rel, max_iter, warm, work, scratch, fscratch, False, out)
             if used >= 0:
                 return _done(out, used + extra, dir_io)
             dir_io[0], dir_io[1], dir_io[2] = -v0, -v1, -v2

@@ -17,7 +17,7 @@ def _vertex_dot(f, i, d0, d1, d2):
     return f[3 * i] * d0 + f[3 * i + 1] * d1 + f[3 * i + 2] * d2
 
 
-@kernel
+@kernel(inline="always")
 def polytope_support_brute(f, n, d0, d1, d2):
     """Index of the vertex maximising d.x, by a linear scan over n vertices."""
     best = 0
@@ -30,7 +30,7 @@ def polytope_support_brute(f, n, d0, d1, d2):
     return best
 
 
-@kernel
+@kernel(inline="always")
 def cube_cell(d0, d1, d2, G):
     """Index of the cube-map cell holding direction d: face (2 * axis + negative), then G x G cells."""
     a0, a1, a2 = abs(d0), abs(d1), abs(d2)
@@ -63,7 +63,7 @@ def cube_cell_centres(G: int) -> np.ndarray:
     return out.reshape(-1, 3)
 
 
-@kernel
+@kernel(inline="always")
 def polytope_support_climb(f, ix, d0, d1, d2, start):
     """Index of the vertex maximising d.x, by steepest-ascent hill climbing over the hull graph.
 
@@ -98,7 +98,7 @@ def polytope_support_climb(f, ix, d0, d1, d2, start):
     return polytope_support_brute(f, n, d0, d1, d2)
 
 
-@kernel
+@kernel(inline="always")
 def polytope_support_index(f, ix, d0, d1, d2, start):
     """Support vertex index: brute force below BRUTE_FORCE_MAX_VERTICES, hill climbing above."""
     n = ix[0]
