@@ -163,18 +163,25 @@ def _query_loop(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R
     n = out.shape[0]
     na = poses_a.shape[0]
     nb = poses_b.shape[0]
+    for q in range(n):
+        posed_query(fA, iA, fB, iB, ints, floats, poses_a[q if na > 1 else 0], poses_b[q if nb > 1 else 0],
+                    coherent, R, t, work, iwork, out[q])
+
+
+@kernel
+def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, R, t, work, iwork, row):
+    """One query of a packed pair (ints, floats rows) at world poses TA, TB into row, world frame.
+
+    coherent: keep the pair's warm start if B moved little relative to A; otherwise start cold.
+    R, t, work, iwork: scratch (see :func:`query_scratch`)."""
     warm = ints[I_WARM:I_WARM + WARM_SIZE]
     d = floats[F_DIR:F_DIR + 3]
-    for q in range(n):
-        TA = poses_a[q if na > 1 else 0]
-        TB = poses_b[q if nb > 1 else 0]
-        relative_pose(TA, TB, R, t)
-        if coherent:
-            keep_simplex_if_coherent(R, t, floats, warm)
-        else:
-            warm[:] = 0
-            d[:] = 0.0
-        row = out[q]
-        gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
-                  floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, iwork, work, row)
-        _to_world(TA, row)
+    relative_pose(TA, TB, R, t)
+    if coherent:
+        keep_simplex_if_coherent(R, t, floats, warm)
+    else:
+        warm[:] = 0
+        d[:] = 0.0
+    gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
+              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, iwork, work, row)
+    _to_world(TA, row)

@@ -16,7 +16,6 @@ import numpy as np
 from spq.kernels.batch import (
     FLOATS_SIZE,
     INTS_SIZE,
-    F_DIR,
     F_MARGIN_A,
     F_MARGIN_B,
     F_TOL_ABS,
@@ -24,16 +23,12 @@ from spq.kernels.batch import (
     I_KIND_A,
     I_KIND_B,
     I_MAX_ITER,
-    I_WARM,
-    _to_world,
-    keep_simplex_if_coherent,
-    relative_pose,
+    posed_query,
 )
-from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_STATUS, WARM_SIZE
 from spq.kernels.borrow import borrowed
+from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_STATUS
 from spq.kernels.jit import kernel
 from spq.kernels.kinematics import forward_kinematics
-from spq.kernels.query import gjk_query
 
 PRUNED = -1  # out[OUT_STATUS] of a pair skipped because its bounding spheres are far apart
 
@@ -82,21 +77,9 @@ def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpoo
                 row[OUT_LOWER] = gap
                 row[OUT_STATUS] = PRUNED
                 continue
-        ints = pair_ints[p]
-        floats = pair_floats[p]
-        warm = ints[I_WARM:I_WARM + WARM_SIZE]
-        d = floats[F_DIR:F_DIR + 3]
-        relative_pose(TA, TB, R, t)
-        if coherent:
-            keep_simplex_if_coherent(R, t, floats, warm)
-        else:
-            warm[:] = 0
-            d[:] = 0.0
-        gjk_query(slot_kind[sa], floats[F_MARGIN_A], fpool[slot_frange[sa, 0]:slot_frange[sa, 1]],
-                  ipool[slot_irange[sa, 0]:slot_irange[sa, 1]], slot_kind[sb], floats[F_MARGIN_B],
-                  fpool[slot_frange[sb, 0]:slot_frange[sb, 1]], ipool[slot_irange[sb, 0]:slot_irange[sb, 1]],
-                  R, t, floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, iwork, work, row)
-        _to_world(TA, row)
+        posed_query(fpool[slot_frange[sa, 0]:slot_frange[sa, 1]], ipool[slot_irange[sa, 0]:slot_irange[sa, 1]],
+                    fpool[slot_frange[sb, 0]:slot_frange[sb, 1]], ipool[slot_irange[sb, 0]:slot_irange[sb, 1]],
+                    pair_ints[p], pair_floats[p], TA, TB, coherent, R, t, work, iwork, row)
 
 
 @kernel
