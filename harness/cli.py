@@ -203,6 +203,10 @@ def cmd_bench_robot(args) -> int:
                 f"with the largest relative gradient change (closest pair unchanged) are bisected {rb.BISECTIONS} times; "
                 f"a jump keeps over {rb.JUMP_RESIDUAL:g} of its change. "
                 f"pairs whose distance varies by less than {rb.MOVING_PAIR_M:g} m along the trajectory are left out.")
+    write_table(tables["kinematics"], out, "robot_kinematics", "Robot scene: forward kinematics against pybullet",
+                meta, where + "Every link's world pose from spq (URDF read by yourdfpy, compiled kinematics) against "
+                "pybullet's (its own URDF parser), composed in double precision from its centre-of-mass frames.")
+    _print(tables["kinematics"])
     _print(tables["scene"][["policy", "configurations", "mode", "pruning_m", "ms_per_config", "pairs_per_s",
                             "mean_iterations", "median_min_distance_m", "median_min_separated_m",
                             "configs_with_overlap"]])

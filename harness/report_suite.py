@@ -150,6 +150,7 @@ def robot_section(out: Path) -> Section:
         rows = scene[(scene.policy == policy) & (scene.configurations == source) & ((scene.pruning_m > 0) == prune)]
         return float(rows.ms_per_config.iloc[0]) if len(rows) else float("nan")
 
+    fk = _read(out, "robot_kinematics.csv").iloc[0]
     auto = scene[scene.policy == "auto"].iloc[0]
     coal = engines[engines.engine == "coal"]
     coal_ms = float(coal.ms_per_config.iloc[0]) if len(coal) else float("nan")
@@ -157,8 +158,10 @@ def robot_section(out: Path) -> Section:
     residual = {(r.policy, r.track): r.largest_residual_after_bisection for r in cont.itertuples()}
     closest = [(p, t) for p, t in jumps if t == "closest pair"]
     paragraphs = [
-        f"Every non-adjacent pair of the robot ({int(auto.pairs)} pairs; auto policy: {auto.pairs_by_bv}) per "
-        "configuration, in one compiled call (forward kinematics included).",
+        f"Every non-adjacent pair of {fk.robot} ({int(auto.pairs)} pairs; auto policy: {auto.pairs_by_bv}) per "
+        "configuration, in one compiled call (forward kinematics included). Forward kinematics against pybullet's "
+        f"on {int(fk.configurations)} configurations ({int(fk.links)} links, {int(fk.dof)} joints): largest position "
+        f"difference {fk.max_position_error_m:.2g} m, rotation entry {fk.max_rotation_entry_error:.2g}.",
         f"auto (STP-BV on the side with fewer patches, PCH on the other): {ms('auto', 'random'):.3g} ms cold, "
         f"{ms('auto', 'trajectory'):.3g} ms with warm starts along the trajectory; the targets are 0.5 ms and 0.25 ms. "
         f"PCH-PCH: {ms('pch', 'random'):.3g} ms cold, {ms('pch', 'trajectory'):.3g} ms coherent. With pruning of pairs "
@@ -188,7 +191,8 @@ def robot_section(out: Path) -> Section:
               "white: skipped (adjacent bodies, and the diagonal); black squares: overlapping hulls."),
     ]
     return Section("Robot scene: whole-body self-distance", paragraphs,
-                   [("All pairs per configuration", scene), ("Against coal and python-fcl", engines),
+                   [("Forward kinematics against pybullet", _read(out, "robot_kinematics.csv")),
+                    ("All pairs per configuration", scene), ("Against coal and python-fcl", engines),
                     ("Gradient continuity", cont)], charts)
 
 

@@ -1,6 +1,7 @@
 """`spq bench robot`: whole-body self-distance of a robot, per configuration, against coal and python-fcl.
 
-Three measurements on one robot scene (JVRC-1 by default, every non-adjacent pair of its bodies):
+Three measurements on one robot scene (JVRC-1 by default, every non-adjacent pair of its bodies),
+after checking spq's forward kinematics against pybullet's on the first random configurations:
 
 - spq's all-pairs time per configuration for each bounding-volume policy, cold on random
   configurations and with per-pair warm starts along a smooth trajectory, with and without
@@ -36,6 +37,7 @@ JUMP_RESIDUAL = 0.25  # a candidate whose change stays over this fraction of its
 CONTINUITY_ZOOM = 10  # the continuity track samples the trajectory this many times finer (steps of ~0.01 rad)
 MOVING_PAIR_M = 1e-3  # m: pairs whose distance varies less along the trajectory are left out (nearly rigid)
 POLICIES = ("auto", "pch", "stp-both")
+FK_CONFIGURATIONS = 100  # random configurations whose link poses are checked against pybullet
 
 
 @dataclass
@@ -328,10 +330,18 @@ def plot_engines(table: pd.DataFrame, engines: pd.DataFrame, path: Path) -> None
 
 def run(config: RobotBenchConfig, out_dir: Path, progress: bool = True) -> dict:
     """Every table and figure of the robot benchmark into out_dir; returns the tables."""
+    from datasets.robots import robot_files
+    from harness.pybullet_kinematics import fk_errors
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     base = load_scene(config, "pch")
     randoms = random_configurations(base.model, config.configurations, config.seed)
+    checked = randoms[:FK_CONFIGURATIONS]
+    position, rotation = fk_errors(robot_files(config.robot).urdf, base.model, checked, strip_geometry=True)
+    kinematics = pd.DataFrame([{"robot": base.model.name, "links": base.model.nlinks, "dof": base.model.ndof,
+                                "configurations": len(checked), "max_position_error_m": position,
+                                "max_rotation_entry_error": rotation}])
     trajectory = smooth_trajectory(base.model, config.steps, config.seed)
     table, scenes, results = scene_table(config, randoms, trajectory, progress)
     pch = scenes.get("pch") or base
@@ -353,5 +363,5 @@ def run(config: RobotBenchConfig, out_dir: Path, progress: bool = True) -> dict:
     plot_distance_matrix(scenes["auto"], randoms[0], out_dir / "robot_distance_matrix.png", "auto")
     plot_trajectory(tracks, out_dir / "robot_trajectory.png")
     plot_engines(table, engines, out_dir / "robot_engines.png")
-    return {"scene": table, "engines": engines, "continuity": continuity,
+    return {"scene": table, "engines": engines, "continuity": continuity, "kinematics": kinematics,
             "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name}

@@ -8,7 +8,6 @@ transforms for a small URDF with continuous, prismatic and mimic joints; the URD
 from __future__ import annotations
 
 import math
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +15,7 @@ import pytest
 
 from datasets.paths import pybullet_data_dir
 from datasets.robots import ROBOTS, link_shape_file, robot_files, robot_urdf
+from harness.pybullet_kinematics import PybulletRobot, quaternion_matrix
 from spq.io.urdf import read_urdf
 from spq.kinematics import CONTINUOUS, FIXED, PRISMATIC, REVOLUTE, MeshGeometry, PrimitiveGeometry, RobotModel
 
@@ -68,85 +68,27 @@ def test_jvrc1_35_link_meshes_each_have_a_convex_hull_file(shared_datasets):
 # ---------------------------------------------------------------- forward kinematics against pybullet
 
 
-def _urdf_without_geometry(path: Path, folder: Path) -> Path:
-    """A copy of the URDF without <visual>/<collision>: pybullet refuses JVRC-1, whose
-    package://jvrc_description meshes are not shipped, and kinematics does not need geometry."""
-    tree = ET.parse(path)
-    for link in tree.getroot().iter("link"):
-        for tag in ("visual", "collision"):
-            for element in link.findall(tag):
-                link.remove(element)
-    out = folder / path.name
-    tree.write(out)
-    return out
-
-
-def _quaternion_matrix(quat) -> np.ndarray:
-    x, y, z, w = np.asarray(quat, dtype=np.float64) / np.linalg.norm(quat)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def _link_frame(com_position, com_orientation, inertial_position, inertial_orientation) -> np.ndarray:
-    """URDF link frame = centre-of-mass frame @ inverse(local inertial frame), composed in double.
-
-    pybullet's own worldLinkFramePosition/Orientation (getLinkState indices 4, 5) are this product
-    computed by its client library in single precision (0.1575 comes back as 0.15749999880...), so
-    they agree with any exact FK only to ~1e-7; indices 0-3 are the server's doubles."""
-    R_com, R_in = _quaternion_matrix(com_orientation), _quaternion_matrix(inertial_orientation)
-    T = np.eye(4)
-    T[:3, :3] = R_com @ R_in.T
-    T[:3, 3] = np.asarray(com_position) - T[:3, :3] @ np.asarray(inertial_position)
-    return T
-
-
 @pytest.mark.engines
 @pytest.mark.parametrize("robot", ["jvrc1", "kuka_iiwa", "panda"])
-def test_link_poses_match_pybullet_link_frames(robot, request, tmp_path):
-    import pybullet as pb
-
+def test_link_poses_match_pybullet_link_frames(robot, request):
     path = _urdf_path(robot, request)
     model = read_urdf(path)
-    load = _urdf_without_geometry(path, tmp_path) if robot == "jvrc1" else path
-    client = pb.connect(pb.DIRECT)
-    try:
-        body = pb.loadURDF(str(load), useFixedBase=True, physicsClientId=client)
-        # pybullet: joint j connects link j (its child) to its parent; map both by name
-        njoints = pb.getNumJoints(body, physicsClientId=client)
-        info = [pb.getJointInfo(body, j, physicsClientId=client) for j in range(njoints)]
-        assert len(info) == model.nlinks - 1
-        links = [model.link_index(row[12].decode()) for row in info]
-        assert [model.link_joint_names[i] for i in links] == [row[1].decode() for row in info]
-        for row, i in zip(info, links):
-            assert (row[2] == pb.JOINT_FIXED) == (model.joint_type[i] == FIXED), row[1]
+    with PybulletRobot(path, model, strip_geometry=robot == "jvrc1") as bullet:
+        assert len(bullet.joint_info) == model.nlinks - 1
+        assert [model.link_joint_names[i] for i in bullet.links] == [row[1].decode() for row in bullet.joint_info]
+        assert bullet.fixed_joints_agree()
         # the root's link frame is the world frame in pybullet as in our model
-        com = pb.getBasePositionAndOrientation(body, physicsClientId=client)
-        inertial = pb.getDynamicsInfo(body, -1, physicsClientId=client)[3:5]
-        np.testing.assert_allclose(_link_frame(*com, *inertial), np.eye(4), rtol=0, atol=FK_TOL)
-
+        np.testing.assert_allclose(bullet.base_frame(), np.eye(4), rtol=0, atol=FK_TOL)
         rng = np.random.default_rng(20240606)
-        worst_position = worst_rotation = 0.0
         for _ in range(N_CONFIGURATIONS):
             q = model.random_configuration(rng)
-            values = model.joint_values(q)  # pybullet ignores <mimic>: set every joint
-            for j, (row, i) in enumerate(zip(info, links)):
-                if row[2] != pb.JOINT_FIXED:
-                    pb.resetJointState(body, j, values[i], physicsClientId=client)
             poses = model.link_poses(q)
-            for j, i in enumerate(links):
-                state = pb.getLinkState(body, j, computeForwardKinematics=True, physicsClientId=client)
-                expected = _link_frame(*state[:4])
-                worst_position = max(worst_position, np.abs(poses[i, :3, 3] - expected[:3, 3]).max())
-                worst_rotation = max(worst_rotation, np.abs(poses[i, :3, :3] - expected[:3, :3]).max())
-                # pybullet's single-precision link frame: same frame, coarser digits
+            expected = bullet.link_frames(q)
+            np.testing.assert_allclose(poses, expected, rtol=0, atol=FK_TOL)
+            # pybullet's single-precision link frame (getLinkState 4, 5): same frame, coarser digits
+            for state, i in zip(bullet.link_states(), bullet.links):
                 assert np.abs(poses[i, :3, 3] - state[4]).max() < 1e-6
-                assert np.abs(poses[i, :3, :3] - _quaternion_matrix(state[5])).max() < 1e-6
-    finally:
-        pb.disconnect(client)
-    assert worst_position <= FK_TOL and worst_rotation <= FK_TOL, (worst_position, worst_rotation)
+                assert np.abs(poses[i, :3, :3] - quaternion_matrix(state[5])).max() < 1e-6
 
 
 # ---------------------------------------------------------------- a small URDF with every joint type

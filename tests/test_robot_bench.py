@@ -59,10 +59,12 @@ def test_bench_robot_on_the_kuka_writes_its_tables_and_figures_and_agrees_with_c
     code = main(["bench", "robot", "--robot", "kuka_iiwa", "--configs", "30", "--steps", "60", "--repeats", "1",
                  "--engines", "coal", "--quiet", "--out", str(tmp_path)])
     assert code == 0
-    for name in ("robot_scene.csv", "robot_engines.csv", "robot_continuity.csv", "robot_engines.png",
+    for name in ("robot_kinematics.csv", "robot_scene.csv", "robot_engines.csv", "robot_continuity.csv", "robot_engines.png",
                  "robot_trajectory.png", "robot_distance_matrix.png"):
         assert (tmp_path / name).stat().st_size > 0
     scene = pd.read_csv(tmp_path / "robot_scene.csv")
     assert len(scene) == 12 and (scene.pairs == 21).all() and (scene.failed == 0).all()
+    fk = pd.read_csv(tmp_path / "robot_kinematics.csv").iloc[0]
+    assert fk.configurations == 30 and fk.max_position_error_m <= 1e-9 and fk.max_rotation_entry_error <= 1e-9
     engines = pd.read_csv(tmp_path / "robot_engines.csv").set_index("engine")
     assert engines.loc["coal", "max_abs_diff_vs_spq_m"] <= 1e-7
