@@ -37,6 +37,7 @@ JUMP_RESIDUAL = 0.25  # a candidate whose change stays over this fraction of its
 CONTINUITY_ZOOM = 10  # the continuity track samples the trajectory this many times finer (steps of ~0.01 rad)
 MOVING_PAIR_M = 1e-3  # m: pairs whose distance varies less along the trajectory are left out (nearly rigid)
 POLICIES = ("auto", "pch", "stp-both")
+TARGET_COLD_MS, TARGET_COHERENT_MS = 0.5, 0.25  # issue 6's targets for auto, JVRC-1 (drawn on the chart)
 FK_CONFIGURATIONS = 100  # random configurations whose link poses are checked against pybullet
 
 
@@ -321,6 +322,12 @@ def plot_engines(table: pd.DataFrame, engines: pd.DataFrame, path: Path) -> None
     fig, ax = plt.subplots(figsize=(10, 4.5))
     ax.bar(range(len(values)), values, color=colours)
     ax.set_yscale("log")
+    ax.yaxis.set_major_locator(plt.matplotlib.ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(plt.matplotlib.ticker.FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_formatter(plt.matplotlib.ticker.NullFormatter())
+    for target, style in ((TARGET_COLD_MS, "--"), (TARGET_COHERENT_MS, ":")):
+        ax.axhline(target, color="0.3", lw=0.8, ls=style)
+        ax.text(len(values) - 0.5, target, f"target {target:g} ms", ha="right", va="bottom", fontsize=7)
     ax.set_xticks(range(len(values)), labels, fontsize=7)
     ax.set_ylabel("ms per configuration (all pairs)")
     for i, v in enumerate(values):
