@@ -112,6 +112,73 @@ def _rot_to_b(R, x0, x1, x2):
 
 
 @kernel
+def _torus_frame(f, ix, p):
+    """Axis e and two unit vectors b1, b2 completing it to an orthonormal frame, of torus patch p."""
+    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
+    e0, e1, e2 = f[k + 3], f[k + 4], f[k + 5]
+    if abs(e0) < 0.9:  # b1 = e x (1, 0, 0)
+        b0, b1, b2 = 0.0, e2, -e1
+    else:  # b1 = e x (0, 1, 0)
+        b0, b1, b2 = -e2, 0.0, e0
+    bn = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
+    b0, b1, b2 = b0 / bn, b1 / bn, b2 / bn
+    return e0, e1, e2, b0, b1, b2, e1 * b2 - e2 * b1, e2 * b0 - e0 * b2, e0 * b1 - e1 * b0
+
+
+@kernel
+def torus_angle(f, ix, p, d0, d1, d2):
+    """Angle about torus p's axis of direction d (local frame): it alone fixes the torus's ball."""
+    e0, e1, e2, b0, b1, b2, c0, c1, c2 = _torus_frame(f, ix, p)
+    return math.atan2(d0 * c0 + d1 * c1 + d2 * c2, d0 * b0 + d1 * b1 + d2 * b2)
+
+
+@kernel
+def torus_turn(f, ix, p, d0, d1, d2, angle):
+    """Direction d (local frame) turned about torus p's axis to the given angle."""
+    e0, e1, e2, b0, b1, b2, c0, c1, c2 = _torus_frame(f, ix, p)
+    de = d0 * e0 + d1 * e1 + d2 * e2
+    w = math.sqrt(max(0.0, d0 * d0 + d1 * d1 + d2 * d2 - de * de))
+    ca, sa = w * math.cos(angle), w * math.sin(angle)
+    return de * e0 + ca * b0 + sa * c0, de * e1 + ca * b1 + sa * c1, de * e2 + ca * b2 + sa * c2
+
+
+@kernel
+def _wrapped(x):
+    if x > math.pi:
+        return x - 2.0 * math.pi
+    if x < -math.pi:
+        return x + 2.0 * math.pi
+    return x
+
+
+@kernel
+def _secant_turn(f, ix, p, d0, d1, d2, m0, m1, m2, prev_patch, prev_angle, prev_h):
+    """Next search direction (local frame) for torus patch p, whose ball was taken along d and
+    gave the normal m. Against a polytope edge the plain update m is a fixed-point iteration on
+    the angle about the torus axis that contracts only by about 1 - (rho + distance) / R per round,
+    so the angle's residual h = angle(m) - angle(d) is driven to zero by secant steps instead
+    (superlinear), from the previous round's (angle, h) on the same patch.
+    Returns (direction, patch, angle(d), h) for the next call."""
+    an = torus_angle(f, ix, p, d0, d1, d2)
+    h = _wrapped(torus_angle(f, ix, p, m0, m1, m2) - an)
+    target = an + h
+    if prev_patch == p:
+        den = h - prev_h
+        if den != 0.0:
+            step = -h * _wrapped(an - prev_angle) / den
+            if abs(step) <= SECANT_MAX_GAIN * abs(h):
+                target = an + step
+    x0, x1, x2 = torus_turn(f, ix, p, m0, m1, m2, target)
+    return x0, x1, x2, p, an, h
+
+
+@kernel
+def _rot_to_a(R, x0, x1, x2):
+    return (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2, R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2,
+            R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2)
+
+
+@kernel
 def _support_of_side(k, f, ix, p, d0, d1, d2, warm, slot, out):
     """Core support along d (local frame) into out; for an STP-BV, patch p's if p owns d."""
     if k == STP and p >= 0:
@@ -123,6 +190,7 @@ def _support_of_side(k, f, ix, p, d0, d1, d2, warm, slot, out):
     warm[slot] = support_local(k, f, ix, d0, d1, d2, warm[slot], out)
 
 
+SECANT_MAX_GAIN = 100.0  # cap of a secant step on a torus angle, in plain-update steps
 BALL_ALTERNATIONS = 60  # far-point alternations between two tori; each shrinks the error about 4x
 
 
@@ -147,7 +215,9 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     sb = fscratch[1]
     tmp = fscratch[2]
     dirv = fscratch[3]
+    prev_patch, prev_angle, prev_h = -1, 0.0, 0.0  # the secant's last torus round
     for _ in range(FINISH_ROUNDS):
+        o0, o1, o2 = n0, n1, n2
         ca0 = ca1 = ca2 = cb0 = cb1 = cb2 = 0.0
         margin_a = margin_b = 0.0
         if kA == STP:
@@ -262,6 +332,15 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
             if gn > 0.0:
                 n0, n1, n2 = g0 / gn, g1 / gn, g2 / gn
+        elif k >= 2 and kA == STP and pa >= iA[IDX_V] + iA[IDX_F]:
+            n0, n1, n2, prev_patch, prev_angle, prev_h = _secant_turn(fA, iA, pa, o0, o1, o2, m0, m1, m2,
+                                                                      prev_patch, prev_angle, prev_h)
+        elif k >= 2 and kB == STP and pb >= iB[IDX_V] + iB[IDX_F]:
+            d0, d1, d2 = _rot_to_b(R, -o0, -o1, -o2)
+            e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
+            x0, x1, x2, prev_patch, prev_angle, prev_h = _secant_turn(fB, iB, pb, d0, d1, d2, e0, e1, e2,
+                                                                      prev_patch, prev_angle, prev_h)
+            n0, n1, n2 = _rot_to_a(R, -x0, -x1, -x2)
     return -1
 
 
