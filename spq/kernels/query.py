@@ -47,8 +47,10 @@ from spq.kernels.stp_support import (
     IDX_HULL_MAP,
     IDX_METHOD,
     IDX_V,
+    METHOD_HULL,
     _offsets,
     ball_of_patch,
+    find_march,
     find_patch,
     in_region,
     march_step,
@@ -60,17 +62,30 @@ FINISH_ROUNDS = 8  # patch-pair corrections before falling back to the full desc
 
 
 @kernel
-def next_patch(f, ix, p, hint, d0, d1, d2):
+def next_patch(f, ix, p, hint, march, d0, d1, d2):
     """The patch owning direction d: p itself, or p's neighbour across the boundary d violates (one
     guided-march step, which reaches the torus between two small spheres instead of jumping it);
-    p < 0: a fresh search, starting from patch ``hint`` if >= 0 (the last query's)."""
+    p < 0: a fresh search, starting from patch ``hint`` if >= 0 (the last query's), by a guided
+    march from it if ``march`` (a hint close to d: the hull vertex the loose search ended on)."""
     n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     u0, u1, u2 = d0 / n, d1 / n, d2 / n
     if p < 0:
-        q, _ = find_patch(f, ix, ix[IDX_METHOD], hint, u0, u1, u2)
+        if march and hint >= 0:
+            q, _ = find_march(f, ix, _offsets(ix)[2], hint, u0, u1, u2)
+        else:
+            q, _ = find_patch(f, ix, ix[IDX_METHOD], hint, u0, u1, u2)
         return q
     q = march_step(f, ix, _offsets(ix)[2], p, u0, u1, u2)
     return p if q < 0 else q
+
+
+@kernel
+def _hull_hint(ix, h):
+    """The small sphere of hull vertex h (where the loose search on the hull ended), or -1 if the
+    STP-BV has no hull or searches by another method than METHOD_HULL."""
+    if ix[IDX_METHOD] != METHOD_HULL or ix[IDX_H] == 0 or h < 0 or h >= ix[IDX_H]:
+        return -1
+    return ix[ix[IDX_HULL_MAP] + h]
 
 
 @kernel
@@ -209,8 +224,8 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     starts from the patches in warm (the last query's)."""
     used = 0
     pa = pb = -1
-    hint_a = warm[0] if coherent and kA == STP else -1
-    hint_b = warm[1] if coherent and kB == STP else -1
+    hint_a = warm[0] if coherent and kA == STP else _hull_hint(iA, iscratch[0]) if kA == STP else -1
+    hint_b = warm[1] if coherent and kB == STP else _hull_hint(iB, iscratch[1]) if kB == STP else -1
     sa = fscratch[0]
     sb = fscratch[1]
     tmp = fscratch[2]
@@ -221,12 +236,12 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
         ca0 = ca1 = ca2 = cb0 = cb1 = cb2 = 0.0
         margin_a = margin_b = 0.0
         if kA == STP:
-            pa = next_patch(fA, iA, pa, hint_a, n0, n1, n2)
+            pa = next_patch(fA, iA, pa, hint_a, not coherent, n0, n1, n2)
             ca0, ca1, ca2, margin_a = ball_of_patch(fA, iA, pa, n0, n1, n2)
             warm[0] = pa
         e0, e1, e2 = _rot_to_b(R, -n0, -n1, -n2)
         if kB == STP:
-            pb = next_patch(fB, iB, pb, hint_b, e0, e1, e2)
+            pb = next_patch(fB, iB, pb, hint_b, not coherent, e0, e1, e2)
             cb0, cb1, cb2, margin_b = ball_of_patch(fB, iB, pb, e0, e1, e2)
             warm[1] = pb
         k = 0  # the ball-ball case has no core simplex
