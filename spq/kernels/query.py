@@ -221,7 +221,8 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     Writes the result into out (A's frame) and returns the descent iterations used, or -1 if no
     round closed the gap. work: (WORK_ROWS, 4) scratch for the inner descent; iscratch: int64
     (WARM_SIZE,) and fscratch: (4, 3) scratch of this function's own. coherent: the first search
-    starts from the patches in warm (the last query's)."""
+    starts from the patches in warm (the last query's); otherwise by a guided march from the small
+    spheres of the hull vertices in iscratch[0:2] (where the loose search on the hulls ended)."""
     used = 0
     pa = pb = -1
     hint_a = warm[0] if coherent and kA == STP else _hull_hint(iA, iscratch[0]) if kA == STP else -1
