@@ -113,16 +113,8 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    R = np.empty((3, 3))
-    t = np.empty(3)
-    relative_pose(TA, TB, R, t)
-    work = np.empty((WORK_ROWS, 4))
-    iwork = np.empty(WARM_SIZE, dtype=np.int64)
-    keep_simplex_if_coherent(R, t, floats, ints[I_WARM:I_WARM + WARM_SIZE])
-    gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
-              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], floats[F_DIR:F_DIR + 3],
-              ints[I_WARM:I_WARM + WARM_SIZE], iwork, work, out)
-    _to_world(TA, out)
+    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)),
+                np.empty(WARM_SIZE, dtype=np.int64), out)
     return POSE_OK
 
 
