@@ -32,9 +32,13 @@ class BenchConfig:
     pairs: list[str] = field(default_factory=lambda: ["PCH-PCH"])
 
 
-def best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
+def best_time(fn, repeats: int, setup=None) -> tuple[float, np.ndarray]:
+    """(best seconds, last result) of ``repeats`` timed calls of fn; setup(), if given, runs untimed
+    before each."""
     best, out = np.inf, None
     for _ in range(repeats):
+        if setup is not None:
+            setup()
         t0 = time.perf_counter()
         out = fn()
         best = min(best, time.perf_counter() - t0)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.bench import best_time
 from harness.robot_poses import random_configurations, smooth_trajectory
 from spq.kernels.gjk import OUT_DISTANCE, OUT_ITERATIONS, OUT_STATUS, OVERLAPPING, SEPARATED
 from spq.scene import Scene
@@ -69,13 +70,7 @@ def best_run(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None, 
     """(best seconds, raw results) of ``repeats`` runs of one call over qs, warm starts reset each time."""
     scene.reset()
     scene.distances_many(qs[:2], coherent=coherent, prune=prune)  # compile / load the kernels
-    best, out = np.inf, None
-    for _ in range(repeats):
-        scene.reset()
-        t0 = time.perf_counter()
-        out = scene.distances_many(qs, coherent=coherent, prune=prune)
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+    return best_time(lambda: scene.distances_many(qs, coherent=coherent, prune=prune), repeats, setup=scene.reset)
 
 
 def summary_row(scene: Scene, policy: str, source: str, coherent: bool, prune, seconds: float,
