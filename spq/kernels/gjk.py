@@ -43,7 +43,8 @@ OUT_LOWER = 10
 OUT_ITERATIONS = 11
 OUT_STATUS = 12
 OUT_SIZE = 13
-WORK_ROWS = 26  # rows of the (WORK_ROWS, 4) scratch array gjk_query takes: 0-21 the descent's, 22-25 the patch finish's
+DESCENT_ROWS = 22  # rows 0-21 of the scratch array: the descent's (simplex, weights, support points, ids)
+WORK_ROWS = DESCENT_ROWS + 4  # rows of the (WORK_ROWS, 4) scratch gjk_query takes; the last 4: the patch finish's
 
 # Warm-start state, an int64 array: the last support features of A and B, then the final simplex
 # of the previous query as (count, 4 feature ids of A, 4 of B), re-evaluated at the new poses.

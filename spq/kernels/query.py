@@ -14,9 +14,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from spq.kernels.gjk import (
+    DESCENT_ROWS,
     OUT_DISTANCE,
     OUT_ITERATIONS,
     OUT_LOWER,
@@ -29,6 +28,7 @@ from spq.kernels.gjk import (
     WARM_FEATURE_A,
     WARM_SIMPLEX_A,
     WARM_SIMPLEX_B,
+    WORK_ROWS,
     OVERLAPPING,
     SEPARATED,
     TOUCHING,
@@ -393,8 +393,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
 
     dir_io: (3,) initial search direction (zero: from A's origin to B's), overwritten with the final
     closest-point direction for the next warm start. warm: int64 (WARM_SIZE,) warm-start state
-    (in/out; zeros for a cold start). iwork: int64 (WARM_SIZE,) scratch. work: (WORK_ROWS, 4) scratch. out: (OUT_SIZE,) result vector,
-    in A's frame. Returns the status code.
+    (in/out; zeros for a cold start). iwork: int64 (WARM_SIZE,) scratch. work: (WORK_ROWS, 4)
+    scratch. out: (OUT_SIZE,) result vector, in A's frame. Returns the status code.
 
     With an STP-BV on either side: first the patches that faced each other in the last query; then
     a loose search on the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and
@@ -405,7 +405,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     if kA == STP or kB == STP:
         scratch = iwork
         scratch[:] = 0
-        fscratch = work[22:26, 0:3]
+        fscratch = work[DESCENT_ROWS:WORK_ROWS, 0:3]
         n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
         if n > 0.0:  # coherence: the patches that faced each other last time
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
