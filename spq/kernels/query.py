@@ -167,24 +167,57 @@ def _wrapped(x):
 
 
 @kernel
-def _secant_turn(f, ix, p, d0, d1, d2, m0, m1, m2, prev_patch, prev_angle, prev_h):
-    """Next search direction (local frame) for torus patch p, whose ball was taken along d and
-    gave the normal m. Against a polytope edge the plain update m is a fixed-point iteration on
-    the angle about the torus axis that contracts only by about 1 - (rho + distance) / R per round,
-    so the angle's residual h = angle(m) - angle(d) is driven to zero by secant steps instead
-    (superlinear), from the previous round's (angle, h) on the same patch.
-    Returns (direction, patch, angle(d), h) for the next call."""
+def _torus_step(f, ix, p, d0, d1, d2, m0, m1, m2, x0, x1, x2, exact, bp, lt, lh, pt, ph, nt, nh):
+    """Next search direction (local frame) for torus patch p, whose ball was taken along d and gave
+    the normal m; x is the proposed direction (exact: the ball solved against this round's witness
+    feature, a polytope vertex or edge; else the plain update).
+
+    The torus's ball depends only on the angle about its axis, so the round is a step of a 1-D
+    root search on the residual h = angle(m) - angle(d), which is continuous in angle(d) (at the
+    arc's ends the ball is the neighbouring big sphere's). Against a polytope edge the plain update
+    contracts only by about 1 - (rho + distance) / R per round, so it is replaced by a secant step
+    from the last round on the same torus (superlinear). Against a vertex the closed form is exact,
+    but when the closest vertex changes with the angle it jumps back and forth over the root: once
+    two rounds on this torus had residuals of opposite signs, any step leaving that bracket is
+    replaced by the interpolation between them (regula falsi, with the Illinois halving of the end
+    that stays put, so that a curved h cannot stall it).
+
+    State, carried between rounds: bp, the torus; (lt, lh), its last round's (angle, h); (pt, ph)
+    and (nt, nh), its last rounds with h > 0 and h < 0 (NaN: none yet).
+    Returns (direction, whether it is the exact proposal unchanged, new state)."""
     an = torus_angle(f, ix, p, d0, d1, d2)
     h = _wrapped(torus_angle(f, ix, p, m0, m1, m2) - an)
-    target = an + h
-    if prev_patch == p:
-        den = h - prev_h
-        if den != 0.0:
-            step = -h * _wrapped(an - prev_angle) / den
+    if bp != p:
+        bp, lt, lh, pt, ph, nt, nh = p, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan
+    turn = not exact
+    if exact:
+        target = torus_angle(f, ix, p, x0, x1, x2)
+    else:
+        x0, x1, x2 = m0, m1, m2
+        target = an + h
+        den = h - lh
+        if lt == lt and den != 0.0:
+            step = -h * _wrapped(an - lt) / den
             if abs(step) <= SECANT_MAX_GAIN * abs(h):
                 target = an + step
-    x0, x1, x2 = torus_turn(f, ix, p, m0, m1, m2, target)
-    return x0, x1, x2, p, an, h
+    if h > 0.0:
+        if lh > 0.0 and nt == nt:
+            nh *= 0.5  # (Illinois) the negative end stayed twice
+        pt, ph = an, h
+    elif h < 0.0:
+        if lh < 0.0 and pt == pt:
+            ph *= 0.5
+        nt, nh = an, h
+    lt, lh = an, h
+    if pt == pt and nt == nt:
+        w = _wrapped(nt - pt)
+        s = _wrapped(target - pt)
+        if w != 0.0 and not (0.0 < s / w < 1.0):
+            target = pt + w * ph / (ph - nh)
+            turn = True
+    if turn:
+        x0, x1, x2 = torus_turn(f, ix, p, x0, x1, x2, target)
+    return x0, x1, x2, not turn, bp, lt, lh, pt, ph, nt, nh
 
 
 @kernel
@@ -210,6 +243,87 @@ BALL_ALTERNATIONS = 60  # far-point alternations between two tori; each shrinks 
 
 
 @kernel
+def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out):
+    """Whether the bodies' own supports along the unit normal m (A's frame, A to B) close the gap:
+    upper = |p_B - p_A| for the witness points in out (a non-STP side's must be set, margin
+    included; an STP side's is its support, written here), lower = the width of the slab between
+    the two support planes. If so, the result is written to out. pa, pb: the STP sides' patches,
+    whose own support is taken if they own m."""
+    sa = fscratch[0]
+    sb = fscratch[1]
+    tmp = fscratch[2]
+    _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa)
+    e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
+    _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp)
+    sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
+    for c in range(3):
+        sa[c] += mA * (m0, m1, m2)[c]
+        sb[c] -= mB * (m0, m1, m2)[c]
+        if kA == STP:
+            out[OUT_POINT_A + c] = sa[c]
+        if kB == STP:
+            out[OUT_POINT_B + c] = sb[c]
+    gx = out[OUT_POINT_B] - out[OUT_POINT_A]
+    gy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
+    gz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
+    upper = math.sqrt(gx * gx + gy * gy + gz * gz)
+    slab = m0 * (sb[0] - sa[0]) + m1 * (sb[1] - sa[1]) + m2 * (sb[2] - sa[2])
+    if slab > 0.0 and upper - slab <= tol_abs + tol_rel * upper:
+        out[OUT_DISTANCE] = upper
+        out[OUT_LOWER] = slab
+        out[OUT_NORMAL] = gx / upper
+        out[OUT_NORMAL + 1] = gy / upper
+        out[OUT_NORMAL + 2] = gz / upper
+        out[OUT_STATUS] = TOUCHING if upper <= tol_abs else SEPARATED
+        return True
+    return False
+
+
+@kernel
+def _segment_residual(f, ix, p, s0, s1, s2, t0, t1, t2, theta):
+    """Torus p's ball at angle theta against the segment s-t (local frame): (h, normal direction x,
+    closest point y), h = angle(x) - theta, x from the ball's centre to y."""
+    e0, e1, e2, b0, b1, b2, c0, c1, c2 = _torus_frame(f, ix, p)
+    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
+    a = f[k + 6]
+    cs, sn = math.cos(theta), math.sin(theta)
+    z0 = f[k] - a * (cs * b0 + sn * c0)
+    z1 = f[k + 1] - a * (cs * b1 + sn * c1)
+    z2 = f[k + 2] - a * (cs * b2 + sn * c2)
+    g0, g1, g2 = t0 - s0, t1 - s1, t2 - s2
+    gg = g0 * g0 + g1 * g1 + g2 * g2
+    lam = 0.0
+    if gg > 0.0:
+        lam = min(1.0, max(0.0, ((z0 - s0) * g0 + (z1 - s1) * g1 + (z2 - s2) * g2) / gg))
+    y0, y1, y2 = s0 + lam * g0, s1 + lam * g1, s2 + lam * g2
+    x0, x1, x2 = y0 - z0, y1 - z1, y2 - z2
+    h = _wrapped(math.atan2(x0 * c0 + x1 * c1 + x2 * c2, x0 * b0 + x1 * b1 + x2 * b2) - theta)
+    return h, x0, x1, x2, y0, y1, y2
+
+
+SEGMENT_SECANT_STEPS = 12  # secant steps of the torus-segment solve (cheap: no support calls)
+SEGMENT_ANGLE_TOL = 1e-14  # rad: residual at which the torus-segment solve stops
+
+
+@kernel
+def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2, theta, h):
+    """The angle at which torus p's ball faces the segment s-t (local frame) along its own normal:
+    secant steps on the residual from (theta, h), the round's angle and residual.
+    Returns (normal direction x, closest point y) at the last angle."""
+    th0, h0 = theta, h
+    th1 = theta + h
+    h1, x0, x1, x2, y0, y1, y2 = _segment_residual(f, ix, p, s0, s1, s2, t0, t1, t2, th1)
+    for _ in range(SEGMENT_SECANT_STEPS):
+        if abs(h1) <= SEGMENT_ANGLE_TOL or h1 == h0:
+            break
+        th2 = th1 - h1 * _wrapped(th1 - th0) / (h1 - h0)
+        th0, h0 = th1, h1
+        th1 = th2
+        h1, x0, x1, x2, y0, y1, y2 = _segment_residual(f, ix, p, s0, s1, s2, t0, t1, t2, th1)
+    return x0, x1, x2, y0, y1, y2
+
+
+@kernel
 def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
                       iscratch, fscratch, coherent, out):
     """Try to settle the query on the balls of the STP patches facing along n (A's frame, A to B).
@@ -227,11 +341,9 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     pa = pb = -1
     hint_a = warm[0] if coherent and kA == STP else _hull_hint(iA, iscratch[0]) if kA == STP else -1
     hint_b = warm[1] if coherent and kB == STP else _hull_hint(iB, iscratch[1]) if kB == STP else -1
-    sa = fscratch[0]
-    sb = fscratch[1]
     tmp = fscratch[2]
     dirv = fscratch[3]
-    prev_patch, prev_angle, prev_h = -1, 0.0, 0.0  # the secant's last torus round
+    bp, lt, lh, pt, ph, nt, nh = -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # the torus search's state (_torus_step)
     for _ in range(FINISH_ROUNDS):
         o0, o1, o2 = n0, n1, n2
         ca0 = ca1 = ca2 = cb0 = cb1 = cb2 = 0.0
@@ -301,62 +413,65 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             if kB != STP:
                 for c in range(3):
                     out[OUT_POINT_B + c] -= mB * (m0, m1, m2)[c]
-        # certificate from the true supports along m (an STP side's patch gives it at once if it owns m)
-        _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa)
-        e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
-        _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp)
-        sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
-        for c in range(3):
-            sa[c] += mA * (m0, m1, m2)[c]
-            sb[c] -= mB * (m0, m1, m2)[c]
-            if kA == STP:
-                out[OUT_POINT_A + c] = sa[c]
-            if kB == STP:
-                out[OUT_POINT_B + c] = sb[c]
-        gx = out[OUT_POINT_B] - out[OUT_POINT_A]
-        gy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
-        gz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
-        upper = math.sqrt(gx * gx + gy * gy + gz * gz)
-        slab = m0 * (sb[0] - sa[0]) + m1 * (sb[1] - sa[1]) + m2 * (sb[2] - sa[2])
-        if slab > 0.0 and upper - slab <= tol_abs + tol_rel * upper:
-            out[OUT_DISTANCE] = upper
-            out[OUT_LOWER] = slab
-            out[OUT_NORMAL] = gx / upper
-            out[OUT_NORMAL + 1] = gy / upper
-            out[OUT_NORMAL + 2] = gz / upper
-            out[OUT_STATUS] = TOUCHING if upper <= tol_abs else SEPARATED
+        if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out):
             return used
-        n0, n1, n2 = m0, m1, m2
-        if k == 1:
-            # against a polytope vertex q: a torus's best ball is centred at its circle point farthest
-            # from q, in closed form (measured: for edge and face witnesses the plain normal update
-            # converges faster)
-            if kA == STP:
-                q0 = out[OUT_POINT_B] + mB * m0
-                q1 = out[OUT_POINT_B + 1] + mB * m1
-                q2 = out[OUT_POINT_B + 2] + mB * m2
-                c0, c1, c2 = far_ball_centre(fA, iA, pa, ca0, ca1, ca2, q0, q1, q2)
-                g0, g1, g2 = q0 - c0, q1 - c1, q2 - c2
-            else:
-                q0 = out[OUT_POINT_A] - mA * m0
-                q1 = out[OUT_POINT_A + 1] - mA * m1
-                q2 = out[OUT_POINT_A + 2] - mA * m2
-                l0, l1, l2 = _to_b(R, t, q0, q1, q2)
-                c0, c1, c2 = far_ball_centre(fB, iB, pb, cb0, cb1, cb2, l0, l1, l2)
-                x0, x1, x2 = _to_a(R, t, c0, c1, c2)
-                g0, g1, g2 = x0 - q0, x1 - q1, x2 - q2
-            gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-            if gn > 0.0:
-                n0, n1, n2 = g0 / gn, g1 / gn, g2 / gn
-        elif k >= 2 and kA == STP and pa >= iA[IDX_V] + iA[IDX_F]:
-            n0, n1, n2, prev_patch, prev_angle, prev_h = _secant_turn(fA, iA, pa, o0, o1, o2, m0, m1, m2,
-                                                                      prev_patch, prev_angle, prev_h)
-        elif k >= 2 and kB == STP and pb >= iB[IDX_V] + iB[IDX_F]:
+        # the next direction, in the STP side's frame: its patch's ball against the other side's witness
+        if kA == STP:
+            p, fs, ist, c0, c1, c2 = pa, fA, iA, ca0, ca1, ca2
+            d0, d1, d2, u0, u1, u2 = o0, o1, o2, m0, m1, m2
+            q0 = out[OUT_POINT_B] + mB * m0
+            q1 = out[OUT_POINT_B + 1] + mB * m1
+            q2 = out[OUT_POINT_B + 2] + mB * m2
+        else:
+            p, fs, ist, c0, c1, c2 = pb, fB, iB, cb0, cb1, cb2
             d0, d1, d2 = _rot_to_b(R, -o0, -o1, -o2)
-            e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
-            x0, x1, x2, prev_patch, prev_angle, prev_h = _secant_turn(fB, iB, pb, d0, d1, d2, e0, e1, e2,
-                                                                      prev_patch, prev_angle, prev_h)
-            n0, n1, n2 = _rot_to_a(R, -x0, -x1, -x2)
+            u0, u1, u2 = _rot_to_b(R, -m0, -m1, -m2)
+            q0, q1, q2 = _to_b(R, t, out[OUT_POINT_A] - mA * m0, out[OUT_POINT_A + 1] - mA * m1,
+                               out[OUT_POINT_A + 2] - mA * m2)
+        x0, x1, x2 = u0, u1, u2
+        y0, y1, y2 = q0, q1, q2  # the polytope side's witness for the new direction (local frame)
+        torus = k >= 1 and p >= ist[IDX_V] + ist[IDX_F]
+        if k == 1:
+            # against a polytope vertex q: a torus's best ball is centred at its circle point
+            # farthest from q, in closed form
+            c0, c1, c2 = far_ball_centre(fs, ist, p, c0, c1, c2, q0, q1, q2)
+            x0, x1, x2 = q0 - c0, q1 - c1, q2 - c2
+        elif k == 2 and torus:
+            # against a polytope edge: the torus's angle facing it, solved on the edge alone
+            if kA == STP:
+                s0, s1, s2 = work[8, 0] + ca0, work[8, 1] + ca1, work[8, 2] + ca2
+                t0, t1, t2 = work[9, 0] + ca0, work[9, 1] + ca1, work[9, 2] + ca2
+            else:
+                s0, s1, s2 = _to_b(R, t, work[4, 0], work[4, 1], work[4, 2])
+                t0, t1, t2 = _to_b(R, t, work[5, 0], work[5, 1], work[5, 2])
+            an = torus_angle(fs, ist, p, d0, d1, d2)
+            x0, x1, x2, y0, y1, y2 = torus_against_segment(fs, ist, p, s0, s1, s2, t0, t1, t2, an,
+                                                           _wrapped(torus_angle(fs, ist, p, u0, u1, u2) - an))
+        kept = False
+        if torus:
+            x0, x1, x2, kept, bp, lt, lh, pt, ph, nt, nh = _torus_step(fs, ist, p, d0, d1, d2, u0, u1, u2, x0, x1, x2,
+                                                                       k <= 2, bp, lt, lh, pt, ph, nt, nh)
+        xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if not (xn > 0.0):
+            x0, x1, x2, xn = u0, u1, u2, 1.0
+            kept = False
+        if kA == STP:
+            n0, n1, n2 = x0 / xn, x1 / xn, x2 / xn
+        else:
+            n0, n1, n2 = _rot_to_a(R, -x0 / xn, -x1 / xn, -x2 / xn)
+        if kept:
+            # the torus's ball solved exactly against this round's witness feature: if that is still
+            # the witness along the new normal, the supports certify it without another descent
+            if kA == STP:
+                for c in range(3):
+                    out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (n0, n1, n2)[c]
+            else:
+                w0, w1, w2 = _to_a(R, t, y0, y1, y2)
+                for c in range(3):
+                    out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (n0, n1, n2)[c]
+            if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch,
+                        out):
+                return used
     return -1
 
 
