@@ -348,3 +348,103 @@ def test_gjk_with_the_superellipsoid_on_either_side_agrees_with_a_sampled_hull()
         local = (forward.point_a[i] - T[:3, 3]) @ T[:3, :3]
         assert implicit_F(local[None], *params)[0] == pytest.approx(1.0, abs=1e-6)
         assert np.linalg.norm(forward.point_b[i] - forward.point_a[i]) == pytest.approx(forward.distance[i], abs=1e-12)
+
+
+# ------------------------------------------------------------------------------------------
+# 7. the support map's derivative and Newton's finish between two smooth superellipsoids
+# ------------------------------------------------------------------------------------------
+SMOOTH_SHAPES = [p for p in SHAPES if max(p[3], p[4]) < 2.0]
+
+
+@pytest.mark.parametrize("params", SMOOTH_SHAPES)
+def test_support_jacobian_matches_central_differences_of_the_support(params):
+    from spq.kernels.superellipsoid_support import pack, superellipsoid_support_jacobian
+
+    f = pack(*params)
+    se = spq.Superellipsoid(*params)
+    rng = np.random.default_rng(21)
+    checked = 0
+    for v in rng.normal(size=(200, 3)):
+        v /= np.linalg.norm(v)
+        out, jac = np.empty(3), np.empty((3, 3))
+        if not superellipsoid_support_jacobian(f, v[0], v[1], v[2], out, jac):
+            continue
+        np.testing.assert_allclose(out, se.support(v), rtol=0, atol=1e-15)
+        h = 1e-6 * min(np.abs(v).min(), 1.0)  # stay inside the octant: |s| is not smooth across it
+        fd = np.column_stack([(se.support(v + h * e) - se.support(v - h * e)) / (2 * h) for e in np.eye(3)])
+        scale = np.abs(fd).max() + 1e-3
+        assert np.abs(jac - fd).max() <= 1e-4 * scale, (v, jac, fd)
+        # degree -1 homogeneity: the support does not move along the direction itself
+        np.testing.assert_allclose(jac @ v, 0.0, atol=1e-8 * scale)
+        checked += 1
+    assert checked > 150
+
+
+def _surface_point(theta, a, b, c, e1, e2):
+    """The parametric surface point at theta = (eta, w) (see parametric_surface)."""
+    eta, w = theta
+    spow = lambda t, e: math.copysign(abs(t) ** e, t)  # noqa: E731
+    return np.array([a * spow(math.cos(eta), e1) * spow(math.cos(w), e2),
+                     b * spow(math.cos(eta), e1) * spow(math.sin(w), e2), c * spow(math.sin(eta), e1)])
+
+
+def _parametric_distance(pa, pb, params_a, params_b, start):
+    """min |x(theta_a) - y(theta_b)| over the two parametric surfaces (world frame), by Nelder-Mead
+    from start = (eta_a, w_a, eta_b, w_b): an oracle that uses neither the support function nor GJK."""
+    from scipy.optimize import minimize
+
+    def gap2(z):
+        x = pa[:3, :3] @ _surface_point(z[:2], *params_a) + pa[:3, 3]
+        y = pb[:3, :3] @ _surface_point(z[2:], *params_b) + pb[:3, 3]
+        return float(np.sum((x - y) ** 2))
+
+    res = minimize(gap2, start, method="Nelder-Mead",
+                   options={"xatol": 1e-13, "fatol": 1e-22, "maxiter": 20_000, "maxfev": 40_000})
+    return math.sqrt(res.fun)
+
+
+def _surface_parameters(n, seed):
+    """The (eta, w) that parametric_surface(n, ..., seed) samples."""
+    rng = np.random.default_rng(seed)
+    eta = rng.uniform(-np.pi / 2, np.pi / 2, n)
+    return np.column_stack([eta, rng.uniform(-np.pi, np.pi, n)])
+
+
+@pytest.mark.parametrize("params_a, params_b", [((0.1, 0.07, 0.05, 0.4, 1.4), (0.08, 0.08, 0.12, 1.2, 0.6)),
+                                                ((0.05, 0.12, 0.08, 0.5, 1.5), (0.3, 0.2, 0.1, 1.9, 1.9))])
+def test_distances_between_two_smooth_superellipsoids_agree_with_a_minimisation_over_the_parametric_surfaces(params_a, params_b):
+    A, B = spq.Superellipsoid(*params_a), spq.Superellipsoid(*params_b)
+    rng = np.random.default_rng(22)
+    n = 300
+    poses_a = np.array([pose(random_rotation(rng), rng.uniform(-0.3, 0.3, 3)) for _ in range(n)])
+    poses_b = np.array([pose(random_rotation(rng), rng.uniform(-0.3, 0.3, 3)) for _ in range(n)])
+    batch = spq.distances(A, B, poses_a, poses_b)
+    # sampled hulls lie inside each body: their distance is an upper bound, and close
+    inner_a = spq.Polyhedron.from_points(parametric_surface(20_000, *params_a, seed=23))
+    inner_b = spq.Polyhedron.from_points(parametric_surface(20_000, *params_b, seed=24))
+    sampled = spq.distances(inner_a, inner_b, poses_a, poses_b)
+    sep = batch.status == "separated"
+    assert sep.sum() > 100 and (~sep).sum() > 10
+    assert (batch.status != "failed").all()
+    assert (sampled.status[~sep] == "overlapping").sum() >= 0.9 * (~sep).sum()
+    assert (sampled.distance[sep] >= batch.distance[sep] - 1e-10).all()
+    assert (sampled.distance[sep] - batch.distance[sep]).max() < 2e-3
+    # the certified interval is tight, and the witness points span the distance
+    assert ((batch.distance - batch.lower_bound)[sep] <= 1e-10 + 1e-10 * batch.distance[sep]).all()
+    gaps = np.linalg.norm(batch.point_b - batch.point_a, axis=1)
+    np.testing.assert_allclose(gaps[sep], batch.distance[sep], rtol=0, atol=1e-12)
+    # an independent minimisation over the parametric surfaces, from the sampled hulls' witnesses
+    theta_a, theta_b = _surface_parameters(20_000, 23), _surface_parameters(20_000, 24)
+    samples_a = parametric_surface(20_000, *params_a, seed=23)
+    samples_b = parametric_surface(20_000, *params_b, seed=24)
+    for i in np.flatnonzero(sep)[:25]:
+        ia = np.argmin(np.linalg.norm(samples_a @ poses_a[i][:3, :3].T + poses_a[i][:3, 3] - sampled.point_a[i], axis=1))
+        ib = np.argmin(np.linalg.norm(samples_b @ poses_b[i][:3, :3].T + poses_b[i][:3, 3] - sampled.point_b[i], axis=1))
+        exact = _parametric_distance(poses_a[i], poses_b[i], params_a, params_b,
+                                     np.concatenate([theta_a[ia], theta_b[ib]]))
+        assert batch.distance[i] == pytest.approx(exact, abs=1e-9)
+    # and the single query gives the batch's answer
+    for i in range(0, n, 25):
+        r = spq.distance(A, poses_a[i], B, poses_b[i])
+        assert r.status == batch.status[i]
+        assert r.distance == pytest.approx(batch.distance[i], abs=1e-12)

@@ -37,6 +37,7 @@ from spq.kernels.gjk import (
     descend,
 )
 from spq.kernels.dispatch import support_local
+from spq.kernels.newton_normal import NEWTON_START_ITERATIONS, NEWTON_START_REL_TOL, newton_normal, smooth_pair
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
 from spq.kernels.stp_support import (
@@ -549,6 +550,12 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
             if used >= 0:
                 return _done(out, used + extra, dir_io)
             dir_io[0], dir_io[1], dir_io[2] = -v0, -v1, -v2
+    elif smooth_pair(kA, fA, kB, fB):
+        used = smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, work,
+                             out)
+        if used >= 0:
+            return _done(out, used, dir_io)
+        extra = -used - 1
     status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
                                                    dir_io, warm, work)
     if status == TOUCHING and tol_abs > 0.0:
@@ -556,6 +563,38 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     _finish(status, k, work[12], work[4:8, 0:3], work[8:12, 0:3], v0, v1, v2, vv, lower, it + extra, mA, mB,
             tol_abs, dir_io, out)
     return int(out[OUT_STATUS])
+
+
+@kernel
+def smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, work, out):
+    """Two smooth bodies (see newton_normal.smooth_pair): GJK to a loose tolerance, then Newton's
+    method on the normal. Returns the iterations used (result in out), or -1 - iterations when the
+    plain descent has to finish (dir_io then holds the best normal found)."""
+    status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs,
+                                                   max(tol_rel, NEWTON_START_REL_TOL),
+                                                   min(max_iter, NEWTON_START_ITERATIONS), dir_io, warm, work)
+    if status == FAILED and it < max_iter and vv > 0.0:
+        status = SEPARATED  # out of iterations, not stuck: Newton's method (or the descent) goes on from v
+    upper = math.sqrt(vv)
+    PA = work[4:8, 0:3]
+    PB = work[8:12, 0:3]
+    lam = work[12]
+    if status == OVERLAPPING or (status == SEPARATED and upper - lower <= tol_abs + tol_rel * upper):
+        _finish(status, k, lam, PA, PB, v0, v1, v2, vv, lower, it, mA, mB, tol_abs, dir_io, out)
+        return it
+    if status != SEPARATED or not (upper > 0.0):
+        return -1 - it
+    ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(fA, fB, R, t, -v0 / upper, -v1 / upper, -v2 / upper,
+                                                              lower, tol_abs, tol_rel, PA[0], PB[0],
+                                                              work[13:DESCENT_ROWS, 0:3])
+    it += evaluations
+    if not ok:
+        dir_io[0], dir_io[1], dir_io[2] = m0, m1, m2
+        return -1 - it
+    lam[0] = 1.0
+    v0, v1, v2 = PA[0, 0] - PB[0, 0], PA[0, 1] - PB[0, 1], PA[0, 2] - PB[0, 2]
+    _finish(SEPARATED, 1, lam, PA, PB, v0, v1, v2, upper * upper, lower, it, mA, mB, tol_abs, dir_io, out)
+    return it
 
 
 @kernel

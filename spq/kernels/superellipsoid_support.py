@@ -65,6 +65,54 @@ def _minor_powers(rho, q, qm1):
     return p, math.exp(qm1 * lr)
 
 
+@kernel(inline="always")
+def _octant_parts(f, u0, u1, u2):
+    """For u >= 0 with max(u) = max of the scaled semi-axes times 1 (see superellipsoid_support):
+    the inner norm's gradient (w0, w1), the outer norm's gradient (wm, wz), the inner norm m and
+    the outer norm h, i.e. h(u) = ||(m, u2)||_q1 with m = ||(u0, u1)||_q2."""
+    # inner norm m = ||(u0, u1)||_q2 = mx S^(1/q2), S = 1 + rho^q2, with gradient (w0, w1) in [0, 1]^2
+    mx = max(u0, u1)
+    m = 0.0
+    if mx > 0.0:
+        if u0 >= u1:
+            p, pm1 = _minor_powers(u1 / mx, f[F_Q2], f[F_Q2M1])
+            w0, w1 = 1.0, pm1
+        else:
+            p, pm1 = _minor_powers(u0 / mx, f[F_Q2], f[F_Q2M1])
+            w0, w1 = pm1, 1.0
+        ls = math.log1p(p)  # log S, in [0, log 2]
+        g = 1.0
+        if p > 0.0:
+            g = math.exp(f[F_H2] * ls)  # S^(1/q2 - 1)
+            w0 *= g
+            w1 *= g
+        m = mx * g * (1.0 + p)  # S^(1/q2) = S^(1/q2 - 1) S
+        # outer norm h = ||(m, u2)||_q1: the ratio of its entries in the log domain, where
+        # log(u2 / m) = log(u2 / mx) - log(S) / q2 needs no power of S (and no wait for it)
+        if u2 > 0.0:
+            lr = math.log(u2 / mx) - ls * (f[F_H2] + 1.0)
+            if lr == 0.0:  # a tie (also q1 = inf, where inf * 0 would be NaN)
+                p, wm, wz = 1.0, 1.0, 1.0
+            elif lr < 0.0:
+                p = math.exp(f[F_Q1] * lr)
+                wm, wz = 1.0, math.exp(f[F_Q1M1] * lr)
+            else:
+                p = math.exp(-f[F_Q1] * lr)
+                wm, wz = math.exp(-f[F_Q1M1] * lr), 1.0
+        else:
+            p, wm, wz = 0.0, 1.0, 0.0
+    else:
+        p, wm, wz = 0.0, 0.0, 1.0
+        w0 = w1 = 0.0
+    G = 1.0
+    if p > 0.0:
+        G = math.exp(f[F_H1] * math.log1p(p))  # T^(1/q1 - 1), T = 1 + ratio^q1
+        wm *= G
+        wz *= G
+    h = max(m, u2) * G * (1.0 + p)  # the larger entry times T^(1/q1)
+    return w0, w1, wm, wz, m, h
+
+
 @kernel
 def superellipsoid_support(f, d0, d1, d2, out):
     """Write the support point of the superellipsoid fdata ``f`` along (d0, d1, d2) into out[0:3].
@@ -92,41 +140,71 @@ def superellipsoid_support(f, d0, d1, d2, out):
         out[1] = math.copysign(f[F_B] * u1 * k, d1)
         out[2] = math.copysign(f[F_C] * u2 * k, d2)
         return
-    # inner norm m = ||(u0, u1)||_q2 = mx S^(1/q2), S = 1 + rho^q2, with gradient (w0, w1) in [0, 1]^2
-    mx = max(u0, u1)
-    if mx > 0.0:
-        if u0 >= u1:
-            p, pm1 = _minor_powers(u1 / mx, f[F_Q2], f[F_Q2M1])
-            w0, w1 = 1.0, pm1
-        else:
-            p, pm1 = _minor_powers(u0 / mx, f[F_Q2], f[F_Q2M1])
-            w0, w1 = pm1, 1.0
-        ls = math.log1p(p)  # log S, in [0, log 2]
-        if p > 0.0:
-            g = math.exp(f[F_H2] * ls)  # S^(1/q2 - 1)
-            w0 *= g
-            w1 *= g
-        # outer norm h = ||(m, u2)||_q1: the ratio of its entries in the log domain, where
-        # log(u2 / m) = log(u2 / mx) - log(S) / q2 needs no power of S (and no wait for it)
-        if u2 > 0.0:
-            lr = math.log(u2 / mx) - ls * (f[F_H2] + 1.0)
-            if lr == 0.0:  # a tie (also q1 = inf, where inf * 0 would be NaN)
-                p, wm, wz = 1.0, 1.0, 1.0
-            elif lr < 0.0:
-                p = math.exp(f[F_Q1] * lr)
-                wm, wz = 1.0, math.exp(f[F_Q1M1] * lr)
-            else:
-                p = math.exp(-f[F_Q1] * lr)
-                wm, wz = math.exp(-f[F_Q1M1] * lr), 1.0
-        else:
-            p, wm, wz = 0.0, 1.0, 0.0
-    else:
-        p, wm, wz = 0.0, 0.0, 1.0
-        w0 = w1 = 0.0
-    if p > 0.0:
-        g = math.exp(f[F_H1] * math.log1p(p))  # T^(1/q1 - 1), T = 1 + ratio^q1
-        wm *= g
-        wz *= g
+    w0, w1, wm, wz, _, _ = _octant_parts(f, u0, u1, u2)
     out[0] = math.copysign(f[F_A] * w0 * wm, d0)
     out[1] = math.copysign(f[F_B] * w1 * wm, d1)
     out[2] = math.copysign(f[F_C] * wz, d2)
+
+
+@kernel(inline="always")
+def _power_over_ratio(w, r, q):
+    """r^(q - 2) = w / r for w = r^(q - 1), a ratio 0 <= r <= 1 and q in (1, inf); at r = 0 its
+    limit: inf for q < 2 (a flat point: the support point moves infinitely fast)."""
+    if r > 0.0:
+        return w / r
+    if q > 2.0:
+        return 0.0
+    return 1.0 if q == 2.0 else math.inf
+
+
+@kernel
+def superellipsoid_support_jacobian(f, d0, d1, d2, out, jac):
+    """Support point along (d0, d1, d2) into out[0:3] and its derivative with respect to the
+    direction into jac (3, 3), jac[i, j] = d out_i / d d_j, at the direction's own scale (unit
+    directions give the derivative on the unit sphere's tangent plane plus a zero radial part).
+
+    The derivative is the scaled Hessian of the dual norm (NOTES section 4): for a q-norm N,
+    d2N/du_i du_j = (q - 1)/N (r_i^(q-2) delta_ij - r_i^(q-1) r_j^(q-1)), r = u/N, chained through
+    the nested norm. Returns False where it does not exist or is unbounded: an exponent of 2 (edges
+    and corners), a direction along the z axis, or a zero component on a flat (q < 2) side.
+    """
+    if f[F_E1] >= 2.0 or f[F_E2] >= 2.0:
+        return False
+    a0, a1, a2 = abs(d0), abs(d1), abs(d2)
+    vmax = max(a0, a1, a2)
+    if not (vmax > 0.0) or not (max(a0, a1) > 0.0):
+        return False
+    inv = 1.0 / vmax
+    u0 = f[F_A] * (a0 * inv)
+    u1 = f[F_B] * (a1 * inv)
+    u2 = f[F_C] * (a2 * inv)
+    w0, w1, wm, wz, m, h = _octant_parts(f, u0, u1, u2)
+    out[0] = math.copysign(f[F_A] * w0 * wm, d0)
+    out[1] = math.copysign(f[F_B] * w1 * wm, d1)
+    out[2] = math.copysign(f[F_C] * wz, d2)
+    q1, q2 = f[F_Q1], f[F_Q2]
+    k2 = f[F_Q2M1] / m
+    c0 = _power_over_ratio(w0, u0 / m, q2)
+    c1 = _power_over_ratio(w1, u1 / m, q2)
+    k1 = f[F_Q1M1] / h
+    cm = _power_over_ratio(wm, m / h, q1)
+    cz = _power_over_ratio(wz, u2 / h, q1)
+    if not (c0 < math.inf and c1 < math.inf and cz < math.inf):
+        return False
+    nmm = k1 * (cm - wm * wm)
+    nmz = -k1 * wm * wz
+    nzz = k1 * (cz - wz * wz)
+    h00 = nmm * w0 * w0 + wm * k2 * (c0 - w0 * w0)
+    h01 = nmm * w0 * w1 - wm * k2 * w0 * w1
+    h11 = nmm * w1 * w1 + wm * k2 * (c1 - w1 * w1)
+    # back from the scaled octant: u = diag(a, b, c) |d| / vmax, and the Hessian is of degree -1
+    s0 = math.copysign(f[F_A], d0)
+    s1 = math.copysign(f[F_B], d1)
+    s2 = math.copysign(f[F_C], d2)
+    jac[0, 0] = s0 * s0 * h00 * inv
+    jac[0, 1] = jac[1, 0] = s0 * s1 * h01 * inv
+    jac[1, 1] = s1 * s1 * h11 * inv
+    jac[0, 2] = jac[2, 0] = s0 * s2 * nmz * w0 * inv
+    jac[1, 2] = jac[2, 1] = s1 * s2 * nmz * w1 * inv
+    jac[2, 2] = s2 * s2 * nzz * inv
+    return True
