@@ -2,7 +2,8 @@
 
 Each engine runs its leanest per-query Python loop (``PreparedPair.distance_loop``); spq also runs its
 batched compiled call. The figure reported is the best of ``repeats`` timed runs (the least disturbed
-by other load on the machine), and every rate is divided by coal's PCH-PCH rate from the same run.
+by other load on the machine), the runs of all engines taken in turn within each round (see
+:func:`best_times`), and every rate is divided by coal's PCH-PCH rate from the same run.
 """
 
 from __future__ import annotations
@@ -45,6 +46,24 @@ def best_time(fn, repeats: int, setup=None) -> tuple[float, np.ndarray]:
     return best, out
 
 
+def best_times(jobs: dict, repeats: int, setups: dict | None = None, progress=None) -> dict:
+    """{key: (best seconds, last result)} of ``repeats`` rounds over the zero-argument calls in
+    ``jobs``, timed in turn within each round, so that a slow spell of a shared machine falls on
+    every job alike and the ratios between them stay fair. setups: {key: untimed call before each
+    timed one}; progress: a tqdm bar to advance once per timed call."""
+    best = {key: (np.inf, None) for key in jobs}
+    for _ in range(repeats):
+        for key, fn in jobs.items():
+            if setups and key in setups:
+                setups[key]()
+            t0 = time.perf_counter()
+            out = fn()
+            best[key] = (min(best[key][0], time.perf_counter() - t0), out)
+            if progress is not None:
+                progress.update(1)
+    return best
+
+
 def timing_modes(pair) -> list[tuple[str, object]]:
     """(mode, distances function) pairs to time: the batch where the engine has one (spq), and the
     leanest per-call loop."""
@@ -52,18 +71,6 @@ def timing_modes(pair) -> list[tuple[str, object]]:
     if hasattr(pair, "distance_batch"):
         modes.insert(0, ("batched", pair.distance_batch))
     return modes
-
-
-def _timed_rows(pair, poses_a, poses_b, repeats: int) -> list[dict]:
-    """Warm up (compilation, caches) on a few poses, then time the loop and, for spq, the batch."""
-    n = len(poses_a)
-    rows = []
-    for mode, fn in timing_modes(pair):
-        fn(poses_a[:8], poses_b[:8])
-        seconds, dist = best_time(lambda: fn(poses_a, poses_b), repeats)
-        rows.append({"mode": mode, "queries": n, "seconds": seconds, "queries_per_s": n / seconds,
-                     "overlapping": int(np.sum(np.asarray(dist) <= 0.0))})
-    return rows
 
 
 def _shapes(config: BenchConfig, load_object) -> dict:
@@ -84,20 +91,27 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
     shapes = _shapes(config, load_object)
     poses_a, poses_b = random_poses(config.poses, config.seed, config.translation_range)
     engines = available_engines(config.engines)
-    jobs = [(p, name) for p in config.pairs for name in engines if p == "PCH-PCH" or name == "spq"]
-    rows = []
+    runs = [(p, name) for p in config.pairs for name in engines if p == "PCH-PCH" or name == "spq"]
+    n = len(poses_a)
+    prepared, jobs = [], {}
     try:
-        for pair_type, name in tqdm(jobs, desc="bench", unit="run", disable=not progress):
+        for pair_type, name in runs:
             a_kind, b_kind = pair_type.split("-")
             pair = engines[name].prepare(shapes[a_kind], shapes[b_kind])
-            try:
-                for row in _timed_rows(pair, poses_a, poses_b, config.repeats):
-                    rows.append({"pair": pair_type, "engine": name, **row})
-            finally:
-                pair.close()
+            prepared.append(pair)
+            for mode, fn in timing_modes(pair):
+                fn(poses_a[:8], poses_b[:8])  # compile and warm
+                jobs[(pair_type, name, mode)] = lambda fn=fn: fn(poses_a, poses_b)
+        with tqdm(total=config.repeats * len(jobs), desc="bench", unit="run", disable=not progress) as bar:
+            timed = best_times(jobs, config.repeats, progress=bar)
     finally:
+        for pair in prepared:
+            pair.close()
         for engine in engines.values():
             engine.close()
+    rows = [{"pair": pair_type, "engine": name, "mode": mode, "queries": n, "seconds": seconds,
+             "queries_per_s": n / seconds, "overlapping": int(np.sum(np.asarray(dist) <= 0.0))}
+            for (pair_type, name, mode), (seconds, dist) in timed.items()]
     table = pd.DataFrame(rows)
     base = table.loc[(table.pair == BASELINE[0]) & (table.engine == BASELINE[1]), "queries_per_s"]
     table["ratio_to_coal_pch"] = table.queries_per_s / base.iloc[0] if len(base) else np.nan

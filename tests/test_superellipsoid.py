@@ -380,6 +380,21 @@ def test_support_jacobian_matches_central_differences_of_the_support(params):
     assert checked > 150
 
 
+@pytest.mark.parametrize("params", SHAPES)
+def test_inner_polytope_lies_inside_and_hugs_the_surface(params):
+    se = spq.Superellipsoid(*params)
+    inner = se.inner_polytope()
+    # inside: the implicit function written out here, at every vertex
+    assert (implicit_F(inner.vertices, *params) <= 1.0).all()
+    # hugging: its support value along random directions is close to the shape's (dense samples)
+    samples = parametric_surface(50_000, *params, seed=25)
+    v = np.random.default_rng(26).normal(size=(500, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    h_inner = (v @ inner.vertices.T).max(axis=1)
+    h_samples = (v @ samples.T).max(axis=1)
+    assert (h_samples - h_inner).max() < 0.05 * max(params[:3])
+
+
 def _surface_point(theta, a, b, c, e1, e2):
     """The parametric surface point at theta = (eta, w) (see parametric_surface)."""
     eta, w = theta

@@ -11,8 +11,9 @@ a ball added to the core, in metres), and two flat arrays whose layout the kind 
 - POINT: the origin (a Sphere is a POINT with its radius as margin); fdata, idata unused.
 - SEGMENT: fdata = (half_length,) along the local z axis (a Capsule is a SEGMENT with a margin).
 - SUPERELLIPSOID: fdata = (a, b, c, e1, e2, q1, q2, q1 - 1, q2 - 1, 1/q1 - 1, 1/q2 - 1): semi-axes (m),
-  exponents in (0, 2] and their dual-norm exponents q = 2/(2 - e) (inf for e = 2), precomputed;
-  idata unused; margin 0. Offsets and packing in kernels/superellipsoid_support.py.
+  exponents in (0, 2] and their dual-norm exponents q = 2/(2 - e) (inf for e = 2), precomputed,
+  then the vertices of an inscribed polytope (from FDATA_SIZE on); idata = that polytope's idata
+  (layout as POLYTOPE); margin 0. Offsets and packing in kernels/superellipsoid_support.py.
 """
 
 POLYTOPE = 0

@@ -7,7 +7,8 @@ the support of A - B and P_n the projection on the plane orthogonal to n: the tw
 face each other along n. In a tangent basis E of n the derivative of that residual is
 E^T (J_A + R J_B R^T) E + rho I, with J the support maps' derivatives (positive semi-definite) and
 rho = -s_D(n).n > 0 the separating-plane bound, so Newton's steps are well defined while the
-bodies are apart and converge quadratically from a loose GJK answer.
+bodies are apart and converge quadratically from a rough normal: the caller's GJK between polytopes
+inscribed in the two bodies (an overlap of those is the bodies' overlap) gives one cheaply.
 
 Every step's support points give an upper bound (their distance) and its plane a lower bound, so
 the result is certified exactly as GJK's is. A step that lowers the lower bound is halved (flat
@@ -25,8 +26,7 @@ from spq.kernels.superellipsoid_support import F_E1, F_E2, superellipsoid_suppor
 
 NEWTON_EVALUATIONS = 12  # support pairs (with derivatives) before the caller's GJK takes over
 NEWTON_HALVINGS = 4  # halvings of a step that lowered the lower bound before giving up
-NEWTON_START_ITERATIONS = 3
-NEWTON_START_REL_TOL = 1e-1
+INNER_REL_TOL = 1e-2  # relative tolerance of the GJK between the inner polytopes that gives the start normal
 SHORTEST = 0.1
 GROWTH = 1.5
 

@@ -37,7 +37,8 @@ from spq.kernels.gjk import (
     descend,
 )
 from spq.kernels.dispatch import support_local
-from spq.kernels.newton_normal import NEWTON_START_ITERATIONS, NEWTON_START_REL_TOL, newton_normal, smooth_pair
+from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_pair
+from spq.kernels.superellipsoid_support import FDATA_SIZE
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
 from spq.kernels.stp_support import (
@@ -567,25 +568,25 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
 
 @kernel
 def smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, work, out):
-    """Two smooth bodies (see newton_normal.smooth_pair): GJK to a loose tolerance, then Newton's
-    method on the normal. Returns the iterations used (result in out), or -1 - iterations when the
-    plain descent has to finish (dir_io then holds the best normal found)."""
-    status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs,
-                                                   max(tol_rel, NEWTON_START_REL_TOL),
-                                                   min(max_iter, NEWTON_START_ITERATIONS), dir_io, warm, work)
-    if status == FAILED and it < max_iter and vv > 0.0:
-        status = SEPARATED  # out of iterations, not stuck: Newton's method (or the descent) goes on from v
-    upper = math.sqrt(vv)
+    """Two smooth bodies (see newton_normal.smooth_pair): GJK between their inner polytopes (an
+    overlap there is theirs), then Newton's method on the normal from the polytopes' closest
+    points. Returns the iterations used (result in out), or -1 - iterations when the plain descent
+    has to finish (dir_io then holds the best normal found). The polytopes' simplex is the warm
+    start kept in warm (the superellipsoids' own descent has none to keep)."""
+    status, k, v0, v1, v2, vv, lower, it = descend(POLYTOPE, fA[FDATA_SIZE:], iA, POLYTOPE, fB[FDATA_SIZE:], iB, R,
+                                                   t, tol_abs, max(tol_rel, INNER_REL_TOL), max_iter, dir_io, warm,
+                                                   work)
     PA = work[4:8, 0:3]
     PB = work[8:12, 0:3]
     lam = work[12]
-    if status == OVERLAPPING or (status == SEPARATED and upper - lower <= tol_abs + tol_rel * upper):
+    if status == OVERLAPPING:
         _finish(status, k, lam, PA, PB, v0, v1, v2, vv, lower, it, mA, mB, tol_abs, dir_io, out)
         return it
-    if status != SEPARATED or not (upper > 0.0):
+    upper = math.sqrt(vv)
+    if status != SEPARATED or not (upper > tol_abs):
         return -1 - it
     ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(fA, fB, R, t, -v0 / upper, -v1 / upper, -v2 / upper,
-                                                              lower, tol_abs, tol_rel, PA[0], PB[0],
+                                                              0.0, tol_abs, tol_rel, PA[0], PB[0],
                                                               work[13:DESCENT_ROWS, 0:3])
     it += evaluations
     if not ok:

@@ -15,7 +15,8 @@ factor lies in [0, 1]: no overflow, no trigonometry, and the limits are the form
 
 Layout (kind SUPERELLIPSOID, see kinds.py): fdata = [a, b, c, e1, e2, q1, q2, q1 - 1, q2 - 1,
 1/q1 - 1, 1/q2 - 1] (F_* offsets below; q - 1 = e/(2 - e) and 1/q - 1 = -e/2 are stored exactly,
-not recomputed from a rounded q); idata unused. Margin 0.
+not recomputed from a rounded q), then an inscribed polytope's vertices, which the support here
+does not read (nor idata, that polytope's). Margin 0.
 """
 
 from __future__ import annotations

@@ -29,6 +29,7 @@ from scipy.special import betaln, digamma
 from spq.kernels import kinds
 from spq.kernels.superellipsoid_support import pack
 from spq.shapes.base import KernelData, Shape
+from spq.shapes.polyhedron import Polyhedron
 from spq.validation import as_points, as_positive
 
 E_MAX = 2.0  # largest exponent of a convex superellipsoid (the diamond / octahedral limit)
@@ -42,6 +43,9 @@ FIT_MAX_F = 1.0 + 1e-12  # what the fit guarantees for every input point: F(R^T 
 POSE_SHIFT_BOUND = 0.25  # fit: max centre shift per axis, in units of the mean MVEE semi-axis
 POSE_TURN_BOUND = 0.5  # fit: max rotation-vector component of the frame refinement (rad)
 AXIS_RANGE = (1e-2, 1e2)  # fit: semi-axes searched within these multiples of the MVEE's smallest / largest
+INNER_DIRECTIONS = 200  # support points spanning the inner polytope, GJK's first phase between two of them
+_NO_IDATA = np.zeros(1, dtype=np.int64)  # the closed-form support reads no integer data
+INNER_SHRINK = 1e-9  # relative pull of the inner polytope's vertices towards the centre: inside despite rounding
 
 
 def as_exponent(value, name: str) -> float:
@@ -69,8 +73,8 @@ class Superellipsoid(Shape):
         self.c = as_positive(c, "c")
         self.e1 = as_exponent(e1, "e1")
         self.e2 = as_exponent(e2, "e2")
-        self._kernel = KernelData(kinds.SUPERELLIPSOID, 0.0, pack(self.a, self.b, self.c, self.e1, self.e2),
-                                  np.zeros(1, dtype=np.int64))
+        self._core = pack(self.a, self.b, self.c, self.e1, self.e2)  # what the closed-form support reads
+        self._kernel = None
 
     # ---------------------------------------------------------------------------------- data
     @property
@@ -84,7 +88,28 @@ class Superellipsoid(Shape):
         return self.e1, self.e2
 
     def kernel_data(self) -> KernelData:
+        """fdata: the closed-form parameters, then the inner polytope's vertices; idata: the inner
+        polytope's (see kernels.kinds)."""
+        if self._kernel is None:
+            inner = self.inner_polytope().kernel_data()
+            fdata = np.concatenate([self._core, inner.fdata])
+            self._kernel = KernelData(kinds.SUPERELLIPSOID, 0.0, fdata, inner.idata)
         return self._kernel
+
+    def inner_polytope(self, n: int = INNER_DIRECTIONS) -> Polyhedron:
+        """A polytope inside the shape: the hull of its support points along n directions spread
+        evenly over the sphere (a Fibonacci lattice), pulled towards the centre by a relative 1e-9
+        so that rounding cannot put a vertex outside. Two of them overlap only if the shapes do, and
+        their closest points give the normal that Newton's finish starts from."""
+        from spq.kernels.dispatch import support_many
+
+        k = np.arange(n) + 0.5
+        z = 1.0 - 2.0 * k / n
+        phi = math.pi * (3.0 - math.sqrt(5.0)) * k
+        rho = np.sqrt(1.0 - z * z)
+        directions = np.column_stack([rho * np.cos(phi), rho * np.sin(phi), z])
+        points = support_many(kinds.SUPERELLIPSOID, self._core, _NO_IDATA, directions)
+        return Polyhedron.from_points(points * (1.0 - INNER_SHRINK))
 
     def __repr__(self) -> str:
         return f"Superellipsoid(a={self.a}, b={self.b}, c={self.c}, e1={self.e1}, e2={self.e2})"
@@ -114,8 +139,7 @@ class Superellipsoid(Shape):
         d = np.asarray(directions, dtype=np.float64)
         single = d.ndim == 1
         d = as_points(d.reshape(1, 3) if single else d, "directions")
-        kd = self._kernel
-        s = support_many(kd.kind, kd.fdata, kd.idata, d)
+        s = support_many(kinds.SUPERELLIPSOID, self._core, _NO_IDATA, d)
         return s[0] if single else s
 
     def surface_points(self, n: int, seed: int = 0) -> np.ndarray:
