@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-from spq.kernels import kinds
 from spq.kernels import scene as kscene
 from spq.kernels.batch import query_scratch
 from spq.kernels.gjk import (
