@@ -36,14 +36,7 @@ class BenchConfig:
 def best_time(fn, repeats: int, setup=None) -> tuple[float, np.ndarray]:
     """(best seconds, last result) of ``repeats`` timed calls of fn; setup(), if given, runs untimed
     before each."""
-    best, out = np.inf, None
-    for _ in range(repeats):
-        if setup is not None:
-            setup()
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+    return best_times({None: fn}, repeats, setups={None: setup} if setup is not None else None)[None]
 
 
 def best_times(jobs: dict, repeats: int, setups: dict | None = None, progress=None) -> dict:

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
+from spq.shapes.superellipsoid import INNER_DIRECTIONS
 
 DEFAULT_OUT = Path("reports")
 
@@ -104,7 +105,7 @@ def cmd_table1(args) -> int:
         "overlap, then finishes exactly on the facing sphere or torus patches with a certificate; so it "
         "costs a PCH query plus the finishing (a few closed-form ball steps, or a ball centre against a "
         "polytope). A superellipsoid is smooth everywhere, so GJK would converge on it only linearly; between "
-        "two of them, spq runs GJK on polytopes inscribed in them (200 support points each; an overlap there is "
+        f"two of them, spq runs GJK on polytopes inscribed in them ({INNER_DIRECTIONS} support points each; an overlap there is "
         "theirs), then Newton's method on the contact normal with the supports' analytic derivatives, which "
         "closes the 1e-10 m certificate in a few steps. Against a PCH or an STP-BV, the plain GJK runs.")
     md = [f"# Table I: proximity queries per second ({args.object})", "",

@@ -27,8 +27,8 @@ from spq.kernels.superellipsoid_support import F_E1, F_E2, superellipsoid_suppor
 NEWTON_EVALUATIONS = 12  # support pairs (with derivatives) before the caller's GJK takes over
 NEWTON_HALVINGS = 4  # halvings of a step that lowered the lower bound before giving up
 INNER_REL_TOL = 1e-2  # relative tolerance of the GJK between the inner polytopes that gives the start normal
-SHORTEST = 0.1
-GROWTH = 1.5
+SHORTEST = 0.1  # smallest factor a halving may shrink the step by (the parabola's maximum can sit near 0)
+GROWTH = 1.5  # the step fraction regrows by this after an accepted step, up to a full Newton step
 
 
 @kernel(inline="always")
