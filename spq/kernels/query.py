@@ -110,6 +110,32 @@ def far_ball_centre(f, ix, p, c0, c1, c2, q0, q1, q2):
 
 
 @kernel
+def aitken_on_circle(f, ix, p, x0, x1, x2, y0, y1, y2, z0, z1, z2):
+    """The limit of a linearly converging sequence x, y, z of points on torus p's centre circle,
+    by Aitken's extrapolation along the last step, put back on the circle; z if the steps do not
+    contract."""
+    d0, d1, d2 = y0 - x0, y1 - x1, y2 - x2
+    g0, g1, g2 = z0 - y0, z1 - y1, z2 - y2
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    if not (dd > 0.0):
+        return z0, z1, z2
+    lam = (g0 * d0 + g1 * d1 + g2 * d2) / dd
+    if not (abs(lam) < 0.9):
+        return z0, z1, z2
+    s = lam / (1.0 - lam)
+    w0, w1, w2 = z0 + s * g0, z1 + s * g1, z2 + s * g2
+    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
+    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+    w0, w1, w2 = w0 - m0, w1 - m1, w2 - m2
+    we = w0 * e0 + w1 * e1 + w2 * e2
+    w0, w1, w2 = w0 - we * e0, w1 - we * e1, w2 - we * e2
+    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if not (wn > 0.0):
+        return z0, z1, z2
+    return m0 + a * w0 / wn, m1 + a * w1 / wn, m2 + a * w2 / wn
+
+
+@kernel
 def _to_a(R, t, x0, x1, x2):
     return (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0], R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1],
             R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2])
@@ -230,14 +256,18 @@ def _rot_to_a(R, x0, x1, x2):
 
 @kernel
 def _support_of_side(k, f, ix, p, d0, d1, d2, warm, slot, out):
-    """Core support along d (local frame) into out; for an STP-BV, patch p's if p owns d."""
+    """Core support along d (local frame) into out; for an STP-BV, patch p's. Returns False (out
+    unset) if p does not own d: another patch's support would lie farther along d than p's ball
+    reaches, so the caller's certificate fails anyway, and the next round moves to that patch."""
     if k == STP and p >= 0:
         n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         u0, u1, u2 = d0 / n, d1 / n, d2 / n
-        if in_region(f, ix, _offsets(ix)[2], p, u0, u1, u2):
-            patch_support(f, ix, p, u0, u1, u2, out)
-            return
+        if not in_region(f, ix, _offsets(ix)[2], p, u0, u1, u2):
+            return False
+        patch_support(f, ix, p, u0, u1, u2, out)
+        return True
     warm[slot] = support_local(k, f, ix, d0, d1, d2, warm[slot], out)
+    return True
 
 
 SECANT_MAX_GAIN = 100.0  # cap of a secant step on a torus angle, in plain-update steps
@@ -257,9 +287,11 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
     sa = fscratch[0]
     sb = fscratch[1]
     tmp = fscratch[2]
-    _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa)
+    if not _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa):
+        return False
     e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
-    _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp)
+    if not _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp):
+        return False
     sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
     for c in range(3):
         sa[c] += mA * (m0, m1, m2)[c]
@@ -367,12 +399,19 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             # two balls: alternate the tori's far points, then the normal joins the centres
             qa0, qa1, qa2 = _to_b(R, t, ca0, ca1, ca2)
             settled = BALL_SETTLED * math.sqrt((qa0 - cb0) ** 2 + (qa1 - cb1) ** 2 + (qa2 - cb2) ** 2)
-            for _ in range(BALL_ALTERNATIONS):
+            two_tori = pa >= iA[IDX_V] + iA[IDX_F] and pb >= iB[IDX_V] + iB[IDX_F]
+            h0 = h1 = h2 = 0.0  # A's centre one alternation back (the current one: ca)
+            for i in range(BALL_ALTERNATIONS):
                 cb0n, cb1n, cb2n = far_ball_centre(fB, iB, pb, cb0, cb1, cb2, qa0, qa1, qa2)
                 x0, x1, x2 = _to_a(R, t, cb0n, cb1n, cb2n)
                 ca0n, ca1n, ca2n = far_ball_centre(fA, iA, pa, ca0, ca1, ca2, x0, x1, x2)
                 moved = abs(ca0n - ca0) + abs(ca1n - ca1) + abs(ca2n - ca2) + abs(cb0n - cb0) + abs(cb1n - cb1) \
                     + abs(cb2n - cb2)
+                if two_tori and i % 2 == 1 and moved > settled:
+                    # the alternation contracts linearly along the circle: extrapolate its limit
+                    # from the last two steps (Aitken), back onto A's circle
+                    ca0n, ca1n, ca2n = aitken_on_circle(fA, iA, pa, h0, h1, h2, ca0, ca1, ca2, ca0n, ca1n, ca2n)
+                h0, h1, h2 = ca0, ca1, ca2
                 ca0, ca1, ca2, cb0, cb1, cb2 = ca0n, ca1n, ca2n, cb0n, cb1n, cb2n
                 qa0, qa1, qa2 = _to_b(R, t, ca0, ca1, ca2)
                 if moved <= settled:
