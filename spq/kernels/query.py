@@ -91,22 +91,30 @@ def _hull_hint(ix, h):
 
 
 @kernel
+def _circle_point(f, ix, p, x0, x1, x2, side):
+    """The point of torus p's centre circle in the direction of x (side 1) or opposite it (side -1),
+    seen from the circle's centre in its plane; (False, 0, 0, 0) if x is on the axis."""
+    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
+    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+    w0, w1, w2 = x0 - m0, x1 - m1, x2 - m2
+    we = w0 * e0 + w1 * e1 + w2 * e2
+    w0, w1, w2 = w0 - we * e0, w1 - we * e1, w2 - we * e2
+    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if not (wn > 0.0):
+        return False, 0.0, 0.0, 0.0
+    s = side * a / wn
+    return True, m0 + s * w0, m1 + s * w1, m2 + s * w2
+
+
+@kernel
 def far_ball_centre(f, ix, p, c0, c1, c2, q0, q1, q2):
     """Centre of patch p's ball facing the point q (local frame): a sphere's own centre (c), or for
     a torus the point of its centre circle farthest from q. The STP-BV lies in every ball of radius
     R centred on the torus's circle arc, so facing q its distance is largest, and exact, there."""
-    V, F = ix[IDX_V], ix[IDX_F]
-    if p < V + F:
+    if p < ix[IDX_V] + ix[IDX_F]:
         return c0, c1, c2
-    k = _offsets(ix)[1] + 7 * (p - V - F)
-    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
-    w0, w1, w2 = q0 - m0, q1 - m1, q2 - m2
-    we = w0 * e0 + w1 * e1 + w2 * e2
-    w0, w1, w2 = w0 - we * e0, w1 - we * e1, w2 - we * e2
-    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    if wn == 0.0:
-        return c0, c1, c2
-    return m0 - a * w0 / wn, m1 - a * w1 / wn, m2 - a * w2 / wn
+    ok, y0, y1, y2 = _circle_point(f, ix, p, q0, q1, q2, -1.0)
+    return (y0, y1, y2) if ok else (c0, c1, c2)
 
 
 @kernel
@@ -123,16 +131,8 @@ def aitken_on_circle(f, ix, p, x0, x1, x2, y0, y1, y2, z0, z1, z2):
     if not (abs(lam) < 0.9):
         return z0, z1, z2
     s = lam / (1.0 - lam)
-    w0, w1, w2 = z0 + s * g0, z1 + s * g1, z2 + s * g2
-    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
-    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
-    w0, w1, w2 = w0 - m0, w1 - m1, w2 - m2
-    we = w0 * e0 + w1 * e1 + w2 * e2
-    w0, w1, w2 = w0 - we * e0, w1 - we * e1, w2 - we * e2
-    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    if not (wn > 0.0):
-        return z0, z1, z2
-    return m0 + a * w0 / wn, m1 + a * w1 / wn, m2 + a * w2 / wn
+    ok, w0, w1, w2 = _circle_point(f, ix, p, z0 + s * g0, z1 + s * g1, z2 + s * g2, 1.0)
+    return (w0, w1, w2) if ok else (z0, z1, z2)
 
 
 @kernel
