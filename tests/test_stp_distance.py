@@ -82,3 +82,26 @@ def test_stp_distance_tends_to_the_pch_distance_as_r_shrinks_and_r_grows(link4, 
         errors.append(err)
     assert all(e2 < e1 for e1, e2 in zip(errors, errors[1:]))
     assert errors[-1] < 1e-3
+
+
+def test_two_tori_facing_agree_with_the_plain_descent():
+    # Boxes meet edge to edge at random poses; on their STP-BVs the closest patches are then often
+    # two tori, the case solved by the far-point alternation with Aitken steps.
+    corners = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.05, 0.05) for z in (-0.03, 0.03)])
+    stp = STPBV.from_points(corners, 0.01, 0.5)
+    first_torus = stp.n_small + stp.n_big
+    pa, pb = random_poses(600, seed=11, translation_range=0.25)
+    batch = spq.distances(stp, stp, pa, pb)
+    checked = 0
+    for i in np.flatnonzero(batch.status == "separated"):
+        n = batch.normal[i]
+        _, patch_a, _ = stp.support_patches(pa[i, :3, :3].T @ n)
+        _, patch_b, _ = stp.support_patches(-(pb[i, :3, :3].T @ n))
+        if patch_a[0] < first_torus or patch_b[0] < first_torus:
+            continue
+        st, upper, lower = plain_descent(stp, stp, pa[i], pb[i])
+        assert st == gjk.SEPARATED
+        assert lower - 1e-9 <= batch.distance[i] <= upper + 1e-9
+        assert abs(np.linalg.norm(batch.point_b[i] - batch.point_a[i]) - batch.distance[i]) <= 1e-12
+        checked += 1
+    assert checked >= 10, f"only {checked} poses with two tori facing"
