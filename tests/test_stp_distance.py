@@ -105,3 +105,33 @@ def test_two_tori_facing_agree_with_the_plain_descent():
         assert abs(np.linalg.norm(batch.point_b[i] - batch.point_a[i]) - batch.distance[i]) <= 1e-12
         checked += 1
     assert checked >= 10, f"only {checked} poses with two tori facing"
+
+
+def test_torus_ball_against_a_segment_is_the_brute_force_nearest(link4):
+    # Oracle: the torus patch's distance to a point y is the distance to the farthest point of its
+    # centre circle minus R; sample the circle and the segment densely and take the best segment point.
+    from spq.kernels.query import torus_against_segment
+
+    stp = STPBV.from_points(link4.vertices, 0.005, 2.0)
+    kd = stp.kernel_data()
+    rng = np.random.default_rng(12)
+    angles = np.linspace(0.0, 2 * np.pi, 4096, endpoint=False)
+    lam = np.linspace(0.0, 1.0, 2001)
+    for torus in rng.choice(stp.n_tori, 25, replace=False):
+        m, e, a = stp.torus_centres[torus], stp.torus_axes[torus], stp.torus_radii[torus]
+        b1 = np.cross(e, [1.0, 0.0, 0.0] if abs(e[0]) < 0.9 else [0.0, 1.0, 0.0])
+        b1 /= np.linalg.norm(b1)
+        b2 = np.cross(e, b1)
+        circle = m + a * (np.cos(angles)[:, None] * b1 + np.sin(angles)[:, None] * b2)
+        for _ in range(4):
+            s, t = m + rng.normal(size=3) * 0.3, m + rng.normal(size=3) * 0.3
+            x, y = np.split(np.array(torus_against_segment(kd.fdata, kd.idata, stp.n_small + stp.n_big + torus, *s, *t)), 2)
+            points = s + lam[:, None] * (t - s)
+            far = np.linalg.norm(points[:, None, :] - circle[None], axis=2).max(axis=1)
+            # no sampled segment point is nearer to the patch (1e-6: the circle's sampling error), and the
+            # best sampled one is as near up to the segment's sampling
+            assert far.min() - 1e-4 <= np.linalg.norm(x) <= far.min() + 1e-6
+            assert np.linalg.norm(np.cross(y - s, t - s)) <= 1e-9 * np.linalg.norm(t - s)  # y on the segment's line
+            assert -1e-12 <= np.dot(y - s, t - s) <= np.dot(t - s, t - s) + 1e-12  # ... and between s and t
+            # x runs from the circle point farthest from y to y
+            assert abs(np.linalg.norm(x) - np.linalg.norm(y - circle, axis=1).max()) <= 1e-6

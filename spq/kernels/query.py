@@ -59,7 +59,11 @@ from spq.kernels.stp_support import (
     patch_support,
 )
 
-LOOSE_REL_TOL = 1e-3  # relative tolerance of the first descent, which only has to find the patches
+# Relative tolerance of the first descent, on the hulls. Between two STP-BVs it only has to find the
+# patches. Against another body it is nearly exact, because its simplex then mostly settles the query
+# by itself (settle_on_small_spheres, settle_on_feature) and a loose one would not.
+LOOSE_REL_TOL = 1e-3
+LOOSE_REL_TOL_ONE_STP = 1e-6
 FINISH_ROUNDS = 8  # patch-pair corrections before falling back to the full descent
 
 
@@ -85,7 +89,15 @@ def next_patch(f, ix, p, hint, march, d0, d1, d2):
 def _hull_hint(ix, h):
     """The small sphere of hull vertex h (where the loose search on the hull ended), or -1 if the
     STP-BV has no hull or searches by another method than METHOD_HULL."""
-    if ix[IDX_METHOD] != METHOD_HULL or ix[IDX_H] == 0 or h < 0 or h >= ix[IDX_H]:
+    if ix[IDX_METHOD] != METHOD_HULL:
+        return -1
+    return small_sphere_of_hull_vertex(ix, h)
+
+
+@kernel
+def small_sphere_of_hull_vertex(ix, h):
+    """The small sphere of underlying-hull vertex h, or -1 if there is no such vertex."""
+    if h < 0 or h >= ix[IDX_H]:
         return -1
     return ix[ix[IDX_HULL_MAP] + h]
 
@@ -317,47 +329,79 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
 
 
 @kernel
-def _segment_residual(f, ix, p, s0, s1, s2, t0, t1, t2, theta):
-    """Torus p's ball at angle theta against the segment s-t (local frame): (h, normal direction x,
-    closest point y), h = angle(x) - theta, x from the ball's centre to y."""
-    e0, e1, e2, b0, b1, b2, c0, c1, c2 = _torus_frame(f, ix, p)
-    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
-    a = f[k + 6]
-    cs, sn = math.cos(theta), math.sin(theta)
-    z0 = f[k] - a * (cs * b0 + sn * c0)
-    z1 = f[k + 1] - a * (cs * b1 + sn * c1)
-    z2 = f[k + 2] - a * (cs * b2 + sn * c2)
+def _closest_on_segment(s0, s1, s2, t0, t1, t2, x0, x1, x2):
+    """The point of segment s-t nearest to x."""
     g0, g1, g2 = t0 - s0, t1 - s1, t2 - s2
     gg = g0 * g0 + g1 * g1 + g2 * g2
     lam = 0.0
     if gg > 0.0:
-        lam = min(1.0, max(0.0, ((z0 - s0) * g0 + (z1 - s1) * g1 + (z2 - s2) * g2) / gg))
-    y0, y1, y2 = s0 + lam * g0, s1 + lam * g1, s2 + lam * g2
-    x0, x1, x2 = y0 - z0, y1 - z1, y2 - z2
-    h = _wrapped(math.atan2(x0 * c0 + x1 * c1 + x2 * c2, x0 * b0 + x1 * b1 + x2 * b2) - theta)
-    return h, x0, x1, x2, y0, y1, y2
+        lam = min(1.0, max(0.0, ((x0 - s0) * g0 + (x1 - s1) * g1 + (x2 - s2) * g2) / gg))
+    return s0 + lam * g0, s1 + lam * g1, s2 + lam * g2
 
 
-SEGMENT_SECANT_STEPS = 12  # secant steps of the torus-segment solve (cheap: no support calls)
-SEGMENT_ANGLE_TOL = 1e-14  # rad: residual at which the torus-segment solve stops
+SEGMENT_NEWTON_STEPS = 60  # safeguarded Newton steps of the torus-segment solve (a handful in practice)
+SEGMENT_PARAMETER_TOL = 1e-15  # step of the segment parameter at which it stops
 
 
 @kernel
-def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2, theta, h):
-    """The angle at which torus p's ball faces the segment s-t (local frame) along its own normal:
-    secant steps on the residual from (theta, h), the round's angle and residual.
-    Returns (normal direction x, closest point y) at the last angle."""
-    th0, h0 = theta, h
-    th1 = theta + h
-    h1, x0, x1, x2, y0, y1, y2 = _segment_residual(f, ix, p, s0, s1, s2, t0, t1, t2, th1)
-    for _ in range(SEGMENT_SECANT_STEPS):
-        if abs(h1) <= SEGMENT_ANGLE_TOL or h1 == h0:
-            break
-        th2 = th1 - h1 * _wrapped(th1 - th0) / (h1 - h0)
-        th0, h0 = th1, h1
-        th1 = th2
-        h1, x0, x1, x2, y0, y1, y2 = _segment_residual(f, ix, p, s0, s1, s2, t0, t1, t2, th1)
-    return x0, x1, x2, y0, y1, y2
+def _phi_slope(a, dg, gg, pp, pq, qq, lam):
+    """(phi'/2, phi''/2) at segment parameter lam, phi as in torus_against_segment, from the dot
+    products of d = s - m, g = t - s and their in-plane parts p, q."""
+    ww = max(0.0, pp + 2.0 * lam * pq + lam * lam * qq)  # |w(lam)|^2
+    if not (ww > 0.0):
+        return dg + lam * gg, gg
+    wn = math.sqrt(ww)
+    wq = pq + lam * qq
+    return dg + lam * gg + a * wq / wn, gg + a * (qq * ww - wq * wq) / (ww * wn)
+
+
+@kernel
+def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2):
+    """Torus p's ball nearest to the segment s-t (local frame): (x, y), y the segment's point nearest
+    to the patch and x = y - the ball's centre, the circle point farthest from y.
+
+    A torus patch lies in every ball of radius R centred on its circle, so its distance to a point
+    y is that to the farthest circle point, minus R: sqrt(phi), phi(y) = |y - m|^2 + 2 a |w| + a^2
+    (m, a: the circle's centre and radius; w: y - m within the circle's plane). phi is convex along
+    the segment, so its minimum there is found by Newton steps on the segment parameter, kept in a
+    bracket where phi' changes sign (bisection when a step leaves it)."""
+    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
+    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+    d0, d1, d2 = s0 - m0, s1 - m1, s2 - m2
+    g0, g1, g2 = t0 - s0, t1 - s1, t2 - s2
+    de = d0 * e0 + d1 * e1 + d2 * e2
+    ge = g0 * e0 + g1 * e1 + g2 * e2
+    p0, p1, p2 = d0 - de * e0, d1 - de * e1, d2 - de * e2  # in-plane parts of y(lam) - m = d + lam g
+    q0, q1, q2 = g0 - ge * e0, g1 - ge * e1, g2 - ge * e2
+    dg = d0 * g0 + d1 * g1 + d2 * g2
+    gg = g0 * g0 + g1 * g1 + g2 * g2
+    pq = p0 * q0 + p1 * q1 + p2 * q2
+    qq = q0 * q0 + q1 * q1 + q2 * q2
+    pp = p0 * p0 + p1 * p1 + p2 * p2
+    lam = 0.0
+    if gg > 0.0 and _phi_slope(a, dg, gg, pp, pq, qq, 0.0)[0] < 0.0:
+        lam = 1.0
+        if _phi_slope(a, dg, gg, pp, pq, qq, 1.0)[0] > 0.0:  # the minimum is inside: phi' = 0 there
+            lo, hi = 0.0, 1.0
+            lam = 0.5
+            for _ in range(SEGMENT_NEWTON_STEPS):
+                slope, curve = _phi_slope(a, dg, gg, pp, pq, qq, lam)
+                if slope > 0.0:
+                    hi = lam
+                else:
+                    lo = lam
+                nxt = lam - slope / curve if curve > 0.0 else 0.5 * (lo + hi)
+                if not (lo < nxt < hi):
+                    nxt = 0.5 * (lo + hi)
+                done = abs(nxt - lam) <= SEGMENT_PARAMETER_TOL
+                lam = nxt
+                if done:
+                    break
+    y0, y1, y2 = s0 + lam * g0, s1 + lam * g1, s2 + lam * g2
+    ok, c0, c1, c2 = _circle_point(f, ix, p, y0, y1, y2, -1.0)
+    if not ok:
+        c0, c1, c2 = m0, m1, m2
+    return y0 - c0, y1 - c1, y2 - c2, y0, y1, y2
 
 
 @kernel
@@ -489,9 +533,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             else:
                 s0, s1, s2 = _to_b(R, t, work[4, 0], work[4, 1], work[4, 2])
                 t0, t1, t2 = _to_b(R, t, work[5, 0], work[5, 1], work[5, 2])
-            an = torus_angle(fs, ist, p, d0, d1, d2)
-            x0, x1, x2, y0, y1, y2 = torus_against_segment(fs, ist, p, s0, s1, s2, t0, t1, t2, an,
-                                                           _wrapped(torus_angle(fs, ist, p, u0, u1, u2) - an))
+            x0, x1, x2, y0, y1, y2 = torus_against_segment(fs, ist, p, s0, s1, s2, t0, t1, t2)
         kept = False
         if torus:
             x0, x1, x2, kept, bp, lt, lh, pt, ph, nt, nh = _torus_step(fs, ist, p, d0, d1, d2, u0, u1, u2, x0, x1, x2,
@@ -537,6 +579,158 @@ def copy_point_simplex(src, dst, point_side):
 
 
 @kernel
+def small_sphere_of_simplex(ix, ids, count):
+    """The small sphere of the one underlying-hull vertex that all count ids (a side's points of a
+    descent's simplex on the hull) share, or -1 if they differ or the STP-BV has no hull."""
+    if count == 0:
+        return -1
+    for i in range(1, count):
+        if ids[i] != ids[0]:
+            return -1
+    return small_sphere_of_hull_vertex(ix, ids[0])
+
+
+@kernel
+def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2, vv, tol_abs, tol_rel, warm, work,
+                            scratch, fscratch, out):
+    """Certify the loose search's result (simplex of k points in work, ids in scratch, closest point
+    v of the hulls' difference) as the STP-BVs' own, without a patch finish; whether it did (result
+    in out).
+
+    Where an STP side's closest hull feature is a single vertex whose small sphere owns the normal,
+    the STP-BV's support along it is that vertex plus r times the normal, which is exactly the grown
+    hull's support: the hull's distance is the STP-BV's. The bodies' supports along the normal
+    certify it (this is the commonest case: small spheres own most of the directions at small r)."""
+    count = scratch[WARM_COUNT]
+    pa = pb = -1
+    if kA == STP:
+        pa = small_sphere_of_simplex(iA, scratch[WARM_SIMPLEX_A:WARM_SIMPLEX_A + count], count)
+        if pa < 0:
+            return False
+    if kB == STP:
+        pb = small_sphere_of_simplex(iB, scratch[WARM_SIMPLEX_B:WARM_SIMPLEX_B + count], count)
+        if pb < 0:
+            return False
+    n = math.sqrt(vv)
+    m0, m1, m2 = -v0 / n, -v1 / n, -v2 / n
+    for c in range(3):
+        acc_a = 0.0
+        acc_b = 0.0
+        for i in range(k):
+            acc_a += work[12, i] * work[4 + i, c]
+            acc_b += work[12, i] * work[8 + i, c]
+        out[OUT_POINT_A + c] = acc_a + mA * (m0, m1, m2)[c]
+        out[OUT_POINT_B + c] = acc_b - mB * (m0, m1, m2)[c]
+    if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out):
+        return False
+    if kA == STP:
+        warm[0] = pa
+    if kB == STP:
+        warm[1] = pb
+    return True
+
+
+MARCH_TO_FEATURE_STEPS = 16  # walk steps of march_to_feature before giving up (it settles in a few)
+
+
+@kernel
+def ball_against_feature(f, ix, p, s0, s1, s2, t0, t1, t2):
+    """Patch p's ball facing the segment s-t (a point if s == t; local frame): (radius, x, y) with
+    y the segment's point nearest to the ball and x = y - centre. A sphere's centre is fixed; a
+    torus's is its circle point farthest from the segment's point nearest to the patch
+    (torus_against_segment)."""
+    c0, c1, c2, rad = ball_of_patch(f, ix, p, s0, s1, s2)
+    if p < ix[IDX_V] + ix[IDX_F]:
+        y0, y1, y2 = _closest_on_segment(s0, s1, s2, t0, t1, t2, c0, c1, c2)
+        return rad, y0 - c0, y1 - c1, y2 - c2, y0, y1, y2
+    x0, x1, x2, y0, y1, y2 = torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2)
+    return rad, x0, x1, x2, y0, y1, y2
+
+
+@kernel
+def march_to_feature(f, ix, p, s0, s1, s2, t0, t1, t2):
+    """The patch of an STP-BV nearest to the outside segment s-t (a point if s == t; local frame),
+    by a walk from patch p: take p's ball facing the segment, and while the direction u from its
+    centre to the segment's nearest point y leaves p's region, step across the boundary u violates
+    (one guided-march step). Where p owns u, the ball's point along u is the body's support along u,
+    so the segment is |y - centre| - radius from the body, exactly. Returns (patch, unit u, y);
+    patch -1 if the walk does not settle within MARCH_TO_FEATURE_STEPS steps or the segment meets a
+    ball."""
+    o_bound = _offsets(ix)[2]
+    for _ in range(MARCH_TO_FEATURE_STEPS):
+        rad, x0, x1, x2, y0, y1, y2 = ball_against_feature(f, ix, p, s0, s1, s2, t0, t1, t2)
+        xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if not (xn > rad):
+            break
+        u0, u1, u2 = x0 / xn, x1 / xn, x2 / xn
+        nxt = march_step(f, ix, o_bound, p, u0, u1, u2)
+        if nxt < 0:
+            return p, u0, u1, u2, y0, y1, y2
+        p = nxt
+    return -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@kernel
+def _segment_of(P, k):
+    """(ok, s, t): the k rows of P (a side's points of a descent's simplex) as a segment s-t (s == t:
+    one point); not ok if they are more than two distinct points."""
+    s0, s1, s2 = P[0, 0], P[0, 1], P[0, 2]
+    t0, t1, t2 = s0, s1, s2
+    for i in range(1, k):
+        x0, x1, x2 = P[i, 0], P[i, 1], P[i, 2]
+        if (x0 == s0 and x1 == s1 and x2 == s2) or (x0 == t0 and x1 == t1 and x2 == t2):
+            continue
+        if t0 != s0 or t1 != s1 or t2 != s2:
+            return False, s0, s1, s2, t0, t1, t2
+        t0, t1, t2 = x0, x1, x2
+    return True, s0, s1, s2, t0, t1, t2
+
+
+@kernel
+def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel, warm, work, scratch, fscratch,
+                      out):
+    """Certify the distance of an STP-BV to a non-STP body whose side of the loose search's simplex
+    (k points in work, ids in scratch) is a vertex or an edge: the distance is then that feature's
+    to the STP-BV, which march_to_feature finds without any descent, if the feature is still the
+    other body's nearest along the normal found (the bodies' supports certify it). Returns whether
+    it did (result in out); otherwise the patch finish runs."""
+    if (kA == STP) == (kB == STP) or k < 1:
+        return False
+    if kA == STP:
+        ok, s0, s1, s2, t0, t1, t2 = _segment_of(work[8:12], k)
+        hint = small_sphere_of_hull_vertex(iA, scratch[0])
+        if not ok or hint < 0:
+            return False
+        p, m0, m1, m2, y0, y1, y2 = march_to_feature(fA, iA, hint, s0, s1, s2, t0, t1, t2)
+        if p < 0:
+            return False
+        for c in range(3):
+            out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (m0, m1, m2)[c]
+        settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, p, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+                           out)
+        if settled:
+            warm[0] = p
+        return settled
+    ok, s0, s1, s2, t0, t1, t2 = _segment_of(work[4:8], k)
+    hint = small_sphere_of_hull_vertex(iB, scratch[1])
+    if not ok or hint < 0:
+        return False
+    s0, s1, s2 = _to_b(R, t, s0, s1, s2)
+    t0, t1, t2 = _to_b(R, t, t0, t1, t2)
+    p, u0, u1, u2, y0, y1, y2 = march_to_feature(fB, iB, hint, s0, s1, s2, t0, t1, t2)
+    if p < 0:
+        return False
+    m0, m1, m2 = _rot_to_a(R, -u0, -u1, -u2)
+    w0, w1, w2 = _to_a(R, t, y0, y1, y2)
+    for c in range(3):
+        out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (m0, m1, m2)[c]
+    settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, p, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out)
+    if settled:
+        warm[1] = p
+    return settled
+
+
+@kernel
 def hull_core(k, m, f, ix):
     """(kind, margin, fdata, idata) of the shape to search first: for an STP-BV its underlying
     convex hull grown by r (a polytope, which the STP-BV contains and hugs within O(L^2 / rho));
@@ -576,8 +770,9 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
         kb, mb, fb, ib = hull_core(kB, mB, fB, iB)
         scratch[:] = 0
-        status, k, v0, v1, v2, vv, lower, it = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs,
-                                                       max(tol_rel, LOOSE_REL_TOL), max_iter, dir_io, scratch, work)
+        loose = LOOSE_REL_TOL_ONE_STP if (kA == STP) != (kB == STP) else LOOSE_REL_TOL
+        status, k, v0, v1, v2, vv, lower, it = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs, max(tol_rel, loose),
+                                                       max_iter, dir_io, scratch, work)
         extra = it
         if (kA == STP) != (kB == STP):  # its simplex on the polytope side seeds the patch finish
             copy_point_simplex(scratch, warm, 0 if kA == STP else 1)
@@ -588,6 +783,12 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
                     tol_abs, dir_io, out)
             return int(out[OUT_STATUS])
         if status == SEPARATED and vv > 0.0:
+            if settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2, vv, tol_abs, tol_rel, warm,
+                                       work, scratch, fscratch, out):
+                return _done(out, extra, dir_io)
+            if settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel, warm, work, scratch,
+                                 fscratch, out):
+                return _done(out, extra, dir_io)
             n = math.sqrt(vv)
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -v0 / n, -v1 / n, -v2 / n, tol_abs,
                                      tol_rel, max_iter, warm, work, scratch, fscratch, False, out)
