@@ -8,6 +8,11 @@ steps. It is certified when the resulting normal lies in both patches' regions: 
 planes with that normal then separate the bodies by exactly the distance found. If the check fails
 (a torus faces, or the loose search picked a neighbouring patch), the patches at the new normal are
 tried again, and after a few rounds the plain descent runs to full tolerance.
+
+Against a body that is not an STP-BV the first search on the hulls usually settles the query by
+itself, with no round: when its simplex ends on one hull vertex whose small sphere owns the normal
+(the hull's distance is then the STP-BV's), or on a vertex or an edge of the other body, to which the
+nearest patch is found by a walk over the patches (march_to_feature).
 """
 
 from __future__ import annotations
@@ -752,8 +757,9 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
 
     With an STP-BV on either side: first the patches that faced each other in the last query; then
     a loose search on the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and
-    whose normal points at the facing patches, settled exactly on those patches; if that fails, the
-    plain descent on the STP-BVs themselves.
+    whose normal points at the facing patches; its simplex may settle the query at once
+    (settle_on_small_spheres, settle_on_feature), else it is settled on those patches
+    (finish_on_patches); if that fails, the plain descent on the STP-BVs themselves.
     """
     extra = 0
     if kA == STP or kB == STP:
