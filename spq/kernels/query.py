@@ -493,14 +493,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 return -1
             m0, m1, m2 = -v0 / math.sqrt(vv), -v1 / math.sqrt(vv), -v2 / math.sqrt(vv)
             # the polytope side's witness: the descent's convex combination, back in A's frame
-            for c in range(3):
-                acc_a = 0.0
-                acc_b = 0.0
-                for i in range(k):
-                    acc_a += work[12, i] * work[4 + i, c]
-                    acc_b += work[12, i] * work[8 + i, c]
-                out[OUT_POINT_A + c] = acc_a + (ca0, ca1, ca2)[c]
-                out[OUT_POINT_B + c] = acc_b + (ca0, ca1, ca2)[c]
+            simplex_witnesses(work, k, ca0, ca1, ca2, ca0, ca1, ca2, out)
             if kA != STP:
                 for c in range(3):
                     out[OUT_POINT_A + c] += mA * (m0, m1, m2)[c]
@@ -568,6 +561,20 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
 
 
 @kernel
+def simplex_witnesses(work, k, a0, a1, a2, b0, b1, b2, out):
+    """Witness points of a descent's simplex (k points, weights and support points in work) into
+    out, A's shifted by a and B's by b."""
+    for c in range(3):
+        acc_a = 0.0
+        acc_b = 0.0
+        for i in range(k):
+            acc_a += work[12, i] * work[4 + i, c]
+            acc_b += work[12, i] * work[8 + i, c]
+        out[OUT_POINT_A + c] = acc_a + (a0, a1, a2)[c]
+        out[OUT_POINT_B + c] = acc_b + (b0, b1, b2)[c]
+
+
+@kernel
 def copy_point_simplex(src, dst, point_side):
     """Copy warm-start state src -> dst for a ball centre (side point_side, 0 = A) against a core:
     the core side's support feature and the simplex, with the point side's ids set to 0. The point
@@ -618,14 +625,7 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
             return False
     n = math.sqrt(vv)
     m0, m1, m2 = -v0 / n, -v1 / n, -v2 / n
-    for c in range(3):
-        acc_a = 0.0
-        acc_b = 0.0
-        for i in range(k):
-            acc_a += work[12, i] * work[4 + i, c]
-            acc_b += work[12, i] * work[8 + i, c]
-        out[OUT_POINT_A + c] = acc_a + mA * (m0, m1, m2)[c]
-        out[OUT_POINT_B + c] = acc_b - mB * (m0, m1, m2)[c]
+    simplex_witnesses(work, k, mA * m0, mA * m1, mA * m2, -mB * m0, -mB * m1, -mB * m2, out)
     if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out):
         return False
     if kA == STP:
