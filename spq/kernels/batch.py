@@ -12,8 +12,7 @@ import math
 import numpy as np
 from spq.kernels.jit import kernel
 
-from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, WARM_COUNT, WARM_SIZE, WORK_ROWS
-from spq.kernels.borrow import borrowed
+from spq.kernels.gjk import IWORK_SIZE, OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, WARM_COUNT, WARM_SIZE, WORK_ROWS
 from spq.kernels.query import gjk_query
 
 POSE_OK = 0
@@ -102,7 +101,7 @@ def _to_world(TA, out):
         out[OUT_NORMAL + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z
 
 
-@kernel
+@kernel(allocates=True)
 def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     """One query with world-frame results in out; warm-start state in ints/floats is updated.
 
@@ -114,15 +113,15 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     if code != POSE_OK:
         return code + 10
     posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)),
-                np.empty(WARM_SIZE, dtype=np.int64), out)
+                np.empty(IWORK_SIZE, dtype=np.int64), out)
     return POSE_OK
 
 
 def query_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Scratch arrays for a batched kernel: R (3, 3), t (3,), work (WORK_ROWS, 4), iwork int64 (WARM_SIZE,).
+    """Scratch arrays for a batched kernel: R (3, 3), t (3,), work (WORK_ROWS, 4), iwork int64 (IWORK_SIZE,).
 
-    Allocated by the Python caller so that the kernel can borrow them (see spq.kernels.borrow)."""
-    return np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)), np.empty(WARM_SIZE, dtype=np.int64)
+    Allocated by the Python caller: the kernels do not allocate (see spq.kernels.jit)."""
+    return np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)), np.empty(IWORK_SIZE, dtype=np.int64)
 
 
 @kernel
@@ -144,20 +143,10 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R
         cb = check_pose(poses_b[q if nb > 1 else 0])
         if cb != POSE_OK:
             return q * 100 + 10 + cb
-    _query_loop(borrowed(fA), borrowed(iA), borrowed(fB), borrowed(iB), borrowed(ints), borrowed(floats),
-                borrowed(poses_a), borrowed(poses_b), coherent, borrowed(out), borrowed(R), borrowed(t),
-                borrowed(work), borrowed(iwork))
-    return -1
-
-
-@kernel
-def _query_loop(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R, t, work, iwork):
-    n = out.shape[0]
-    na = poses_a.shape[0]
-    nb = poses_b.shape[0]
     for q in range(n):
         posed_query(fA, iA, fB, iB, ints, floats, poses_a[q if na > 1 else 0], poses_b[q if nb > 1 else 0],
                     coherent, R, t, work, iwork, out[q])
+    return -1
 
 
 @kernel

@@ -56,7 +56,7 @@ def support_local(kind, f, ix, d0, d1, d2, warm, out):
     return 0
 
 
-@kernel
+@kernel(allocates=True)
 def support_many(kind, f, ix, directions):
     """Support points (m, 3) for an (m, 3) array of local directions (cold start each)."""
     m = directions.shape[0]

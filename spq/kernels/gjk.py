@@ -44,12 +44,15 @@ OUT_ITERATIONS = 11
 OUT_STATUS = 12
 OUT_SIZE = 13
 DESCENT_ROWS = 22  # rows 0-21 of the scratch array: the descent's (simplex, weights, support points, ids)
-WORK_ROWS = DESCENT_ROWS + 4  # rows of the (WORK_ROWS, 4) scratch gjk_query takes; the last 4: the patch finish's
+PATCH_ROWS = 4  # rows after the descent's: the patch finish's scratch
+PROBE_ROW = DESCENT_ROWS + PATCH_ROWS  # first row of certify_overlap's scratch (a descent's, then 2 rows)
+WORK_ROWS = PROBE_ROW + DESCENT_ROWS + 2  # rows of the (WORK_ROWS, 4) scratch gjk_query takes
 
 # Warm-start state, an int64 array: the last support features of A and B, then the final simplex
 # of the previous query as (count, 4 feature ids of A, 4 of B), re-evaluated at the new poses.
 WARM_FEATURE_A, WARM_FEATURE_B, WARM_COUNT, WARM_SIMPLEX_A, WARM_SIMPLEX_B = 0, 1, 2, 3, 7
 WARM_SIZE = 11
+IWORK_SIZE = 2 * WARM_SIZE  # int64 scratch of gjk_query: the STP search's simplex ids, then the probes' warm start
 
 
 # ------------------------------------------------------------------------------------------
@@ -354,24 +357,26 @@ PROBE_RADIUS_IN_TOL = 4.0  # probe tetrahedron circumradius, in units of tol_abs
 
 
 @kernel
-def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm):
+def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm, work, iwork):
     """OVERLAPPING if the origin is certainly inside A - B, else TOUCHING.
 
     The origin is inside A - B by at least s/3 - tol_abs if the four corners q of a regular
     tetrahedron of circumradius s around it all are (distance(q, A - B) <= tol_abs): A - B is
     convex, so it then holds the tetrahedron's inscribed ball. Each corner is one plain descent
-    with B shifted by q, since distance(q, A - B) = distance(A, B + q).
+    with B shifted by q, since distance(q, A - B) = distance(A, B + q). work: (DESCENT_ROWS + 2, 4)
+    and iwork: int64 (WARM_SIZE,) scratch.
     """
     s = PROBE_RADIUS_IN_TOL * tol_abs
-    work = np.empty((WORK_ROWS, 4))
-    tq = np.empty(3)
-    probe_warm = warm.copy()  # the probes must not replace the query's own warm-start simplex
+    tq = work[DESCENT_ROWS, 0:3]
+    zero = work[DESCENT_ROWS + 1, 0:3]
+    for i in range(WARM_SIZE):  # the probes must not replace the query's own warm-start simplex
+        iwork[i] = warm[i]
     for p in range(4):
         for c in range(3):
             tq[c] = t[c] + s * _PROBES[p, c]
-        zero = np.zeros(3)
+            zero[c] = 0.0
         st, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, tq, tol_abs, tol_rel, max_iter,
-                                                   zero, probe_warm, work)
+                                                   zero, iwork, work)
         if st != OVERLAPPING and st != TOUCHING:
             return TOUCHING
     return OVERLAPPING

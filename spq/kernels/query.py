@@ -33,6 +33,9 @@ from spq.kernels.gjk import (
     WARM_FEATURE_A,
     WARM_SIMPLEX_A,
     WARM_SIMPLEX_B,
+    IWORK_SIZE,
+    PROBE_ROW,
+    WARM_SIZE,
     WORK_ROWS,
     OVERLAPPING,
     SEPARATED,
@@ -752,7 +755,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
 
     dir_io: (3,) initial search direction (zero: from A's origin to B's), overwritten with the final
     closest-point direction for the next warm start. warm: int64 (WARM_SIZE,) warm-start state
-    (in/out; zeros for a cold start). iwork: int64 (WARM_SIZE,) scratch. work: (WORK_ROWS, 4)
+    (in/out; zeros for a cold start). iwork: int64 (IWORK_SIZE,) scratch. work: (WORK_ROWS, 4)
     scratch. out: (OUT_SIZE,) result vector, in A's frame. Returns the status code.
 
     With an STP-BV on either side: first the patches that faced each other in the last query; then
@@ -763,9 +766,9 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     """
     extra = 0
     if kA == STP or kB == STP:
-        scratch = iwork
+        scratch = iwork[0:WARM_SIZE]
         scratch[:] = 0
-        fscratch = work[DESCENT_ROWS:WORK_ROWS, 0:3]
+        fscratch = work[DESCENT_ROWS:PROBE_ROW, 0:3]
         n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
         if n > 0.0:  # coherence: the patches that faced each other last time
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
@@ -810,7 +813,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
                                                    dir_io, warm, work)
     if status == TOUCHING and tol_abs > 0.0:
-        status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm)
+        status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm,
+                                 work[PROBE_ROW:WORK_ROWS], iwork[WARM_SIZE:IWORK_SIZE])
     _finish(status, k, work[12], work[4:8, 0:3], work[8:12, 0:3], v0, v1, v2, vv, lower, it + extra, mA, mB,
             tol_abs, dir_io, out)
     return int(out[OUT_STATUS])

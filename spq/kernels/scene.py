@@ -25,7 +25,6 @@ from spq.kernels.batch import (
     I_MAX_ITER,
     posed_query,
 )
-from spq.kernels.borrow import borrowed
 from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_STATUS
 from spq.kernels.jit import kernel
 from spq.kernels.kinematics import forward_kinematics
@@ -92,16 +91,14 @@ def scene_distances(parent, joint_type, joint_origin, joint_axis, q_index, q_mul
     Forward kinematics from ``base`` (4x4 world pose of the root link), slot poses, then every pair
     (see :func:`pairs_at_poses`); with coherent the warm starts carry from one configuration to the
     next, as along a trajectory. links (nlinks, 4, 4), poses (nslots, 4, 4), R, t, work, iwork:
-    scratch from the caller (see :func:`spq.kernels.batch.query_scratch`), which the kernel borrows.
+    scratch from the caller (see :func:`spq.kernels.batch.query_scratch`).
     Joint values are not checked here (the caller validates them)."""
-    b = borrowed
     for i in range(qs.shape[0]):
-        forward_kinematics(b(parent), b(joint_type), b(joint_origin), b(joint_axis), b(q_index), b(q_multiplier),
-                           b(q_offset), b(qs[i]), b(base), b(links))
-        slot_poses(b(links), b(slot_link), b(slot_offset), b(poses))
-        pairs_at_poses(b(poses), b(slot_kind), b(slot_margin), b(slot_frange), b(slot_irange), b(fpool), b(ipool),
-                       b(slot_centre), b(slot_radius), b(pair_slots), b(pair_ints), b(pair_floats), coherent, prune,
-                       b(R), b(t), b(work), b(iwork), b(out[i]))
+        forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, qs[i], base,
+                           links)
+        slot_poses(links, slot_link, slot_offset, poses)
+        pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre, slot_radius,
+                       pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out[i])
 
 
 def pack_pair_state(slot_kind, slot_margin, pair_slots, tol_abs, tol_rel, max_iter):

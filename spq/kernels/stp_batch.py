@@ -10,7 +10,7 @@ from spq.kernels.jit import kernel
 from spq.kernels.stp_support import IDX_E, IDX_F, IDX_V, _offsets, find_patch, in_region, patch_support
 
 
-@kernel
+@kernel(allocates=True)
 def support_batch(f, ix, method, directions, coherent):
     """Support points (m, 3), owning patches (m,) and search steps (m,) for (m, 3) directions.
 
@@ -34,7 +34,7 @@ def support_batch(f, ix, method, directions, coherent):
     return points, patches, steps
 
 
-@kernel
+@kernel(allocates=True)
 def owner_counts(f, ix, directions):
     """Number of patches whose region holds each direction (m,)."""
     P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
