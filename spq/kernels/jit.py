@@ -10,7 +10,9 @@ scene's all-pairs call, where a query is a chain of small calls with a dozen arr
 those calls took about a fifth of the time (measured with perf). A kernel without NRT cannot
 allocate, so the hot paths take scratch arrays from their callers; a kernel that does allocate (an
 entry point that returns new arrays) says so with ``allocates=True`` and may call the others, but
-not the other way round.
+not the other way round. Nor may code with NRT (a kernel with ``allocates=True``, or a user's own
+``njit``) keep an array that a kernel without it returns (hull_core's views): it would release a
+reference it never took.
 """
 
 from numba import njit
