@@ -29,7 +29,7 @@ import pandas as pd
 
 from harness.bench import best_time
 from harness.robot_poses import random_configurations, smooth_trajectory
-from spq.kernels.gjk import OUT_DISTANCE, OUT_ITERATIONS, OUT_STATUS, OVERLAPPING, SEPARATED
+from spq.kernels.gjk import OUT_DISTANCE, OUT_ITERATIONS, OUT_SIZE, OUT_STATUS, OVERLAPPING, SEPARATED
 from spq.scene import Scene
 
 JUMP_CANDIDATES = 20  # the steps with the largest relative gradient change, tested by bisection
@@ -67,10 +67,15 @@ def load_scene(config: RobotBenchConfig, policy: str) -> Scene:
 
 
 def best_run(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None, repeats: int):
-    """(best seconds, raw results) of ``repeats`` runs of one call over qs, warm starts reset each time."""
+    """(best seconds, raw results) of ``repeats`` runs of one call over qs, warm starts reset each time.
+
+    The calls write into one result array, allocated and touched before the timing, as a control
+    loop would: a fresh array's page faults are the allocator's cost, not the queries'."""
     scene.reset()
     scene.distances_many(qs[:2], coherent=coherent, prune=prune)  # compile / load the kernels
-    return best_time(lambda: scene.distances_many(qs, coherent=coherent, prune=prune), repeats, setup=scene.reset)
+    out = np.zeros((len(qs), len(scene.pairs), OUT_SIZE))
+    return best_time(lambda: scene.distances_many(qs, coherent=coherent, prune=prune, out=out), repeats,
+                     setup=scene.reset)
 
 
 def summary_row(scene: Scene, policy: str, source: str, coherent: bool, prune, seconds: float,

@@ -364,8 +364,13 @@ class Scene:
         """Joint values drawn uniformly within the limits (numpy Generator)."""
         return self.model.random_configuration(rng)
 
-    def _run(self, qs: np.ndarray, coherent: bool, prune: float) -> np.ndarray:
-        out = np.empty((len(qs), len(self.pairs), OUT_SIZE))
+    def _run(self, qs: np.ndarray, coherent: bool, prune: float, out: np.ndarray | None = None) -> np.ndarray:
+        shape = (len(qs), len(self.pairs), OUT_SIZE)
+        if out is None:
+            out = np.empty(shape)
+        elif (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float64
+              or not out.flags.c_contiguous or not out.flags.writeable):
+            raise ValueError(f"out must be a writeable C-contiguous float64 array of shape {shape}")
         m = self.model
         kscene.scene_distances(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
                                m.q_offset, self.base, qs,
@@ -393,12 +398,17 @@ class Scene:
         out = self._run(q[None], coherent, self._check_prune(prune))
         return SceneDistances.from_out(self.pairs, out[0])
 
-    def distances_many(self, qs, coherent: bool = False, prune: float | None = None) -> np.ndarray:
+    def distances_many(self, qs, coherent: bool = False, prune: float | None = None,
+                       out: np.ndarray | None = None) -> np.ndarray:
         """Raw results (N, npairs, OUT_SIZE; columns as spq.kernels.gjk.OUT_*) for N configurations
-        (N, ndof) in one compiled call; coherent carries warm starts from one to the next."""
+        (N, ndof) in one compiled call; coherent carries warm starts from one to the next.
+
+        out: an array of that shape (float64, C-contiguous) to write the results into and return,
+        so that a loop calling this again allocates nothing (a fresh array's first touch costs page
+        faults, a few percent of a call over many configurations)."""
         qs = np.atleast_2d(np.asarray(qs, dtype=np.float64))
         checked = self.model.check_configurations(qs)
-        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune))
+        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune), out)
 
     def link_poses(self, q) -> np.ndarray:
         """(nlinks, 4, 4) world poses of the links at q."""

@@ -44,6 +44,10 @@ OUT_ITERATIONS = 11
 OUT_STATUS = 12
 OUT_SIZE = 13
 DESCENT_ROWS = 22  # rows 0-21 of the scratch array: the descent's (simplex, weights, support points, ids)
+# Rows of a descent's last support points s_A(-v), s_B(v) (A's frame), and the cell that is 1.0 when
+# they were taken along the final v: the supports along the final normal, which a certificate re-uses.
+SUPPORT_ROW_A, SUPPORT_ROW_B = 13, 14
+FRESH_ROW, FRESH_COL = 15, 3
 PATCH_ROWS = 4  # rows after the descent's: the patch finish's scratch
 PROBE_ROW = DESCENT_ROWS + PATCH_ROWS  # first row of certify_overlap's scratch (a descent's, then 2 rows)
 WORK_ROWS = PROBE_ROW + DESCENT_ROWS + 2  # rows of the (WORK_ROWS, 4) scratch gjk_query takes
@@ -411,6 +415,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
     scratch = work[16:20]
 
     FI = work[20:22]
+    work[FRESH_ROW, FRESH_COL] = 0.0
     lower = 0.0
     status = FAILED
     it = 0
@@ -445,6 +450,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
             status = TOUCHING
             break
         minkowski_support(kA, fA, iA, kB, fB, iB, R, t, -v0, -v1, -v2, warm, pa, pb, tmp)
+        work[FRESH_ROW, FRESH_COL] = 1.0
         w0, w1, w2 = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
         vw = v0 * w0 + v1 * w1 + v2 * w2
         lower = max(lower, vw / upper)
@@ -465,6 +471,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
             k = 1
             lam[0] = 1.0
             v0, v1, v2, vv = w0, w1, w2, ww * ww
+            work[FRESH_ROW, FRESH_COL] = 0.0
             status = TOUCHING if ww <= tol_abs else SEPARATED
             break
         if _is_duplicate(PA, PB, k, pa, pb):
@@ -473,6 +480,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
         _push(W, PA, PB, FI, k, pa, pb, warm)
         k += 1
         k, inside = reduce_simplex(W, PA, PB, FI, k, lam, scratch)
+        work[FRESH_ROW, FRESH_COL] = 0.0
         if inside:
             status = OVERLAPPING
             v0 = v1 = v2 = vv = lower = 0.0

@@ -21,6 +21,10 @@ import math
 
 from spq.kernels.gjk import (
     DESCENT_ROWS,
+    FRESH_COL,
+    FRESH_ROW,
+    SUPPORT_ROW_A,
+    SUPPORT_ROW_B,
     OUT_DISTANCE,
     OUT_ITERATIONS,
     OUT_LOWER,
@@ -51,6 +55,7 @@ from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
 from spq.kernels.stp_support import (
     F_R,
+    IDX_E,
     IDX_F,
     IDX_H,
     IDX_HULL,
@@ -91,6 +96,14 @@ def next_patch(f, ix, p, hint, march, d0, d1, d2):
         return q
     q = march_step(f, ix, _offsets(ix)[2], p, u0, u1, u2)
     return p if q < 0 else q
+
+
+@kernel
+def _first_patch(ix, hint):
+    """The last query's patch, if valid, taken as it is: along a trajectory it nearly always still
+    owns the normal, and the certificate checks that it does (a search here would only repeat that
+    check); -1 if there is none."""
+    return hint if 0 <= hint < ix[IDX_V] + ix[IDX_F] + ix[IDX_E] else -1
 
 
 @kernel
@@ -297,25 +310,41 @@ BALL_ALTERNATIONS = 60  # far-point alternations between two tori; each shrinks 
 BALL_SETTLED = 1e-10
 
 
+KNOWN_A, KNOWN_B = 1, 2  # _certify's ``known`` bits: that side's support along the normal is given
+
+
 @kernel
-def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out):
+def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known, out):
     """Whether the bodies' own supports along the unit normal m (A's frame, A to B) close the gap:
     upper = |p_B - p_A| for the witness points in out (a non-STP side's must be set, margin
     included; an STP side's is its support, written here), lower = the width of the slab between
     the two support planes. If so, the result is written to out. pa, pb: the STP sides' patches,
-    whose own support is taken if they own m."""
+    whose own support is taken if they own m. known: KNOWN_A / KNOWN_B bits of the sides whose
+    support along m (margin included, A's frame) the caller put in fscratch[0] / fscratch[1], as a
+    descent's last support points are when taken along its final direction; an STP side's patch
+    must still own m, as it does not when another patch reaches farther."""
     sa = fscratch[0]
     sb = fscratch[1]
     tmp = fscratch[2]
-    if not _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa):
-        return False
+    if known & KNOWN_A:
+        if kA == STP and pa >= 0 and not in_region(fA, iA, _offsets(iA)[2], pa, m0, m1, m2):
+            return False
+    else:
+        if not _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa):
+            return False
+        for c in range(3):
+            sa[c] += mA * (m0, m1, m2)[c]
     e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
-    if not _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp):
-        return False
-    sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
+    if known & KNOWN_B:
+        if kB == STP and pb >= 0 and not in_region(fB, iB, _offsets(iB)[2], pb, e0, e1, e2):
+            return False
+    else:
+        if not _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp):
+            return False
+        sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
+        for c in range(3):
+            sb[c] -= mB * (m0, m1, m2)[c]
     for c in range(3):
-        sa[c] += mA * (m0, m1, m2)[c]
-        sb[c] -= mB * (m0, m1, m2)[c]
         if kA == STP:
             out[OUT_POINT_A + c] = sa[c]
         if kB == STP:
@@ -438,15 +467,18 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
         ca0 = ca1 = ca2 = cb0 = cb1 = cb2 = 0.0
         margin_a = margin_b = 0.0
         if kA == STP:
-            pa = next_patch(fA, iA, pa, hint_a, not coherent, n0, n1, n2)
+            q = _first_patch(iA, hint_a) if coherent and pa < 0 else -1
+            pa = q if q >= 0 else next_patch(fA, iA, pa, hint_a, not coherent, n0, n1, n2)
             ca0, ca1, ca2, margin_a = ball_of_patch(fA, iA, pa, n0, n1, n2)
             warm[0] = pa
         e0, e1, e2 = _rot_to_b(R, -n0, -n1, -n2)
         if kB == STP:
-            pb = next_patch(fB, iB, pb, hint_b, not coherent, e0, e1, e2)
+            q = _first_patch(iB, hint_b) if coherent and pb < 0 else -1
+            pb = q if q >= 0 else next_patch(fB, iB, pb, hint_b, not coherent, e0, e1, e2)
             cb0, cb1, cb2, margin_b = ball_of_patch(fB, iB, pb, e0, e1, e2)
             warm[1] = pb
         k = 0  # the ball-ball case has no core simplex
+        known = 0
         if kA == STP and kB == STP:
             # two balls: alternate the tori's far points, then the normal joins the centres
             qa0, qa1, qa2 = _to_b(R, t, ca0, ca1, ca2)
@@ -503,7 +535,17 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             if kB != STP:
                 for c in range(3):
                     out[OUT_POINT_B + c] -= mB * (m0, m1, m2)[c]
-        if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out):
+            if work[FRESH_ROW, FRESH_COL] == 1.0:  # the core side's last support was along -v = m's
+                if kA == STP:
+                    known = KNOWN_B
+                    for c in range(3):
+                        fscratch[1, c] = work[SUPPORT_ROW_B, c] + (ca0, ca1, ca2)[c] - mB * (m0, m1, m2)[c]
+                else:
+                    known = KNOWN_A
+                    for c in range(3):
+                        fscratch[0, c] = work[SUPPORT_ROW_A, c] + mA * (m0, m1, m2)[c]
+        if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known,
+                    out):
             return used
         # the next direction, in the STP side's frame: its patch's ball against the other side's witness
         if kA == STP:
@@ -557,7 +599,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 w0, w1, w2 = _to_a(R, t, y0, y1, y2)
                 for c in range(3):
                     out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (n0, n1, n2)[c]
-            if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch,
+            if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch, 0,
                         out):
                 return used
     return -1
@@ -629,7 +671,18 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
     n = math.sqrt(vv)
     m0, m1, m2 = -v0 / n, -v1 / n, -v2 / n
     simplex_witnesses(work, k, mA * m0, mA * m1, mA * m2, -mB * m0, -mB * m1, -mB * m2, out)
-    if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out):
+    known = 0
+    if work[FRESH_ROW, FRESH_COL] == 1.0:
+        # the descent's last supports were along m: the hulls' (grown by r on an STP side, where the
+        # small sphere's support is its centre, the hull vertex, plus r m if it owns m)
+        known = KNOWN_A | KNOWN_B
+        grow_a = mA + (fA[F_R] if kA == STP else 0.0)
+        grow_b = mB + (fB[F_R] if kB == STP else 0.0)
+        for c in range(3):
+            fscratch[0, c] = work[SUPPORT_ROW_A, c] + grow_a * (m0, m1, m2)[c]
+            fscratch[1, c] = work[SUPPORT_ROW_B, c] - grow_b * (m0, m1, m2)[c]
+    if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known,
+                    out):
         return False
     if kA == STP:
         warm[0] = pa
@@ -715,7 +768,7 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
         for c in range(3):
             out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (m0, m1, m2)[c]
         settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, p, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
-                           out)
+                           0, out)
         if settled:
             warm[0] = p
         return settled
@@ -732,7 +785,8 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
     w0, w1, w2 = _to_a(R, t, y0, y1, y2)
     for c in range(3):
         out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (m0, m1, m2)[c]
-    settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, p, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, out)
+    settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, p, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
+                       out)
     if settled:
         warm[1] = p
     return settled
