@@ -29,7 +29,7 @@ COHERENT_ROTATION = 0.2  # max |R - R_prev| entry for the previous simplex to be
 COHERENT_TRANSLATION = 0.2  # max |t - t_prev| / |t_prev| for the same
 
 
-@kernel
+@kernel(inline="always")
 def keep_simplex_if_coherent(R, t, floats, warm):
     """Drop the warm-start simplex and direction unless B moved little relative to A since the last query.
 
@@ -80,7 +80,7 @@ def check_pose(T):
     return POSE_OK
 
 
-@kernel
+@kernel(inline="always")
 def relative_pose(TA, TB, R, t):
     """R = RA^T RB and t = RA^T (tB - tA): B's pose in A's frame."""
     for r in range(3):
@@ -89,7 +89,7 @@ def relative_pose(TA, TB, R, t):
         t[r] = TA[0, r] * (TB[0, 3] - TA[0, 3]) + TA[1, r] * (TB[1, 3] - TA[1, 3]) + TA[2, r] * (TB[2, 3] - TA[2, 3])
 
 
-@kernel
+@kernel(inline="always")
 def _to_world(TA, out):
     """Witness points and normal of a gjk_query result, from A's frame to the world, in place."""
     for base in (OUT_POINT_A, OUT_POINT_B):

@@ -605,7 +605,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     return -1
 
 
-@kernel
+@kernel(inline="always")
 def simplex_witnesses(work, k, a0, a1, a2, b0, b1, b2, out):
     """Witness points of a descent's simplex (k points, weights and support points in work) into
     out, A's shifted by a and B's by b."""
@@ -619,7 +619,7 @@ def simplex_witnesses(work, k, a0, a1, a2, b0, b1, b2, out):
         out[OUT_POINT_B + c] = acc_b + (b0, b1, b2)[c]
 
 
-@kernel
+@kernel(inline="always")
 def copy_point_simplex(src, dst, point_side):
     """Copy warm-start state src -> dst for a ball centre (side point_side, 0 = A) against a core:
     the core side's support feature and the simplex, with the point side's ids set to 0. The point
@@ -906,7 +906,7 @@ def smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
     return it
 
 
-@kernel
+@kernel(inline="always")
 def _done(out, iterations, dir_io):
     out[OUT_ITERATIONS] = iterations
     for c in range(3):

@@ -157,7 +157,7 @@ def find_patch(f, ix, method, start, u0, u1, u2):
     return find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2)
 
 
-@kernel
+@kernel(inline="always")
 def ball_of_patch(f, ix, p, d0, d1, d2):
     """(ball centre x, y, z, ball radius) whose support is patch p's along directions d in its region:
     a small or big sphere, or for a torus the big ball centred at the circle point opposite d."""
