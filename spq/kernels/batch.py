@@ -149,7 +149,7 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R
     return -1
 
 
-@kernel
+@kernel(inline="always")
 def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, R, t, work, iwork, row):
     """One query of a packed pair (ints, floats rows) at world poses TA, TB into row, world frame.
 
