@@ -193,7 +193,8 @@ def cmd_bench_robot(args) -> int:
              "smooth trajectory. ")
     write_table(tables["scene"], out, "robot_scene", "Robot scene: all pairs per configuration", meta,
                 where + f"Best of {args.repeats} runs of one compiled call over all configurations, per configuration; "
-                "forward kinematics included. cold: every pair starts cold; coherent: per-pair warm starts along the "
+                "forward kinematics included; the results go into one array allocated beforehand, as a control loop "
+                "would keep. cold: every pair starts cold; coherent: per-pair warm starts along the "
                 f"trajectory. pruning_m > 0: pairs whose bounding spheres are farther apart are skipped.")
     write_table(tables["engines"], out, "robot_engines", "Robot scene: spq against coal and python-fcl", meta,
                 where + "Same PCH pairs at the same random configurations; the engines run one Python call per "

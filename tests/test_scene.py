@@ -26,7 +26,7 @@ import pytest
 
 from datasets.robots import ROBOTS
 from harness.robot_poses import smooth_trajectory
-from spq.kernels.gjk import OUT_DISTANCE
+from spq.kernels.gjk import OUT_DISTANCE, OUT_SIZE
 from spq.scene import Scene
 from tests.conftest import require_shared_datasets
 
@@ -312,6 +312,11 @@ def test_coherent_distances_along_a_trajectory_equal_cold_ones(policy, jvrc1_aut
     many = scene.distances_many(jvrc1_trajectory, coherent=True)
     np.testing.assert_allclose(many[:, :, OUT_DISTANCE], np.array([w.distance for w in warm]), rtol=0,
                                atol=COHERENT_TOL)
+    # and into a caller's array, which it returns, with the same results
+    scene.reset()
+    buffer = np.full_like(many, np.nan)
+    assert scene.distances_many(jvrc1_trajectory, coherent=True, out=buffer) is buffer
+    np.testing.assert_array_equal(buffer, many)
     scene.reset()
 
 
@@ -536,6 +541,11 @@ def test_bad_configurations_raise_naming_the_joint(tiny):
             scene.distance_gradient(bad, result, 0)
     with pytest.raises(ValueError, match="configurations 1: value 2.5 of joint 'elbow'"):
         scene.distances_many([q, [0.3, 2.5]])
+    shape = (1, len(scene.pairs), OUT_SIZE)
+    strided = np.zeros(shape[:2] + (2 * OUT_SIZE,))[:, :, ::2]
+    for out in (np.zeros((2,) + shape[1:]), np.zeros(shape, dtype=np.float32), strided, [[[0.0] * OUT_SIZE]]):
+        with pytest.raises(ValueError, match=r"out must be a writeable C-contiguous float64 array of shape \(1, "):
+            scene.distances_many([q], out=out)
 
 
 def test_bad_policies_and_prune_raise(tiny):
