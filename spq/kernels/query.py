@@ -313,6 +313,15 @@ BALL_SETTLED = 1e-10
 KNOWN_A, KNOWN_B = 1, 2  # _certify's ``known`` bits: that side's support along the normal is given
 
 
+@kernel(inline="always")
+def _owned_support(known, k, f, ix, p, u0, u1, u2, warm, slot, out):
+    """A side's part of the certificate along unit u (local frame): with its support known, whether
+    its patch p (if an STP side's) owns u; otherwise _support_of_side's (support into out)."""
+    if known:
+        return not (k == STP and p >= 0) or in_region(f, ix, _offsets(ix)[2], p, u0, u1, u2)
+    return _support_of_side(k, f, ix, p, u0, u1, u2, warm, slot, out)
+
+
 @kernel
 def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known, out):
     """Whether the bodies' own supports along the unit normal m (A's frame, A to B) close the gap:
@@ -326,21 +335,15 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
     sa = fscratch[0]
     sb = fscratch[1]
     tmp = fscratch[2]
-    if known & KNOWN_A:
-        if kA == STP and pa >= 0 and not in_region(fA, iA, _offsets(iA)[2], pa, m0, m1, m2):
-            return False
-    else:
-        if not _support_of_side(kA, fA, iA, pa, m0, m1, m2, warm, 0, sa):
-            return False
+    if not _owned_support(known & KNOWN_A, kA, fA, iA, pa, m0, m1, m2, warm, 0, sa):
+        return False
+    if not known & KNOWN_A:
         for c in range(3):
             sa[c] += mA * (m0, m1, m2)[c]
     e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
-    if known & KNOWN_B:
-        if kB == STP and pb >= 0 and not in_region(fB, iB, _offsets(iB)[2], pb, e0, e1, e2):
-            return False
-    else:
-        if not _support_of_side(kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp):
-            return False
+    if not _owned_support(known & KNOWN_B, kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp):
+        return False
+    if not known & KNOWN_B:
         sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
         for c in range(3):
             sb[c] -= mB * (m0, m1, m2)[c]
