@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 import spq
 from spq.kernels import kinds
 from spq.kernels.dispatch import support_many
-from spq.kernels.support import cube_cell, cube_cell_centres
+from spq.kernels.support import cube_cell, cube_cell_centres, cube_cell_corners
 
 
 def _random_hull(seed, n=400):
@@ -55,6 +55,23 @@ def test_cube_cell_centres_fall_in_their_own_cells():
     centres = cube_cell_centres(G)
     cells = [cube_cell(*c, G) for c in centres]
     assert cells == list(range(6 * G * G))
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_cells_marked_exact_hold_the_support_of_every_direction_in_them_borders_included(seed):
+    poly = _random_hull(seed, n=120)
+    kd = poly.kernel_data()
+    G, start = kd.idata[1], kd.idata[2]
+    exact = kd.idata[start:start + 6 * G * G] < 0
+    assert 0.05 < exact.mean() < 0.95  # some cells are marked, and some are not
+    corners = cube_cell_corners(G)[exact]  # (m, 4, 3)
+    weights = np.random.default_rng(seed).dirichlet(np.full(4, 0.3), size=(len(corners), 16))
+    edges = 0.5 * (corners + np.roll(corners, 1, axis=1))  # where a direction's cell is decided by rounding
+    dirs = np.vstack([corners.reshape(-1, 3), edges.reshape(-1, 3), np.einsum("mkc,mcj->mkj", weights,
+                                                                                corners).reshape(-1, 3)])
+    s = support_many(kd.kind, kd.fdata, kd.idata, dirs)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, s), (dirs @ poly.vertices.T).max(axis=1), rtol=0,
+                               atol=1e-15)
 
 
 @settings(max_examples=60, deadline=None)

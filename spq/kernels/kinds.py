@@ -6,7 +6,8 @@ a ball added to the core, in metres), and two flat arrays whose layout the kind 
 - POLYTOPE: fdata = vertices (n*3, x y z interleaved); idata = [n, G, table_start, offsets (n+1),
   neighbours..., table (6*G*G)]: the vertex adjacency in CSR form (offsets index into the neighbour
   list, which starts at n + 4), then a cube map of G x G cells on each of the six faces of the
-  direction cube holding the support vertex of each cell's centre direction, where a climb starts.
+  direction cube holding the support vertex of each cell's centre direction, where a climb starts,
+  or -(v + 1) where v is the support vertex of every direction of the cell (no climb needed).
 - BOX: fdata = half extents (hx, hy, hz); idata unused.
 - POINT: the origin (a Sphere is a POINT with its radius as margin); fdata, idata unused.
 - SEGMENT: fdata = (half_length,) along the local z axis (a Capsule is a SEGMENT with a margin).

@@ -9,7 +9,7 @@ from scipy.spatial import ConvexHull, QhullError
 from spq.io.mesh import load_mesh_vertices
 from spq.io.qhull import read_qhull_off
 from spq.kernels import kinds
-from spq.kernels.support import cube_cell_centres
+from spq.kernels.support import cube_map_table
 from spq.shapes.base import KernelData, Shape
 from spq.validation import as_points
 
@@ -115,7 +115,7 @@ class Polyhedron(Shape):
         if self._kernel is None:
             n = len(self.vertices)
             G = kinds.CUBE_MAP_CELLS
-            table = np.argmax(cube_cell_centres(G) @ self.vertices.T, axis=1)
+            table = cube_map_table(self.vertices, G)
             table_start = 3 + (n + 1) + len(self.adjacency)
             idata = np.concatenate([[n, G, table_start], self.adjacency_offsets, self.adjacency, table])
             idata = idata.astype(np.int64)
