@@ -10,9 +10,9 @@ import spq
 from datasets import load_object
 from harness.engines.coal_engine import CoalEngine
 from harness.poses import random_poses
-from spq.kernels import batch as kb
 from spq.kernels import gjk
 from spq.shapes.stpbv import STPBV
+from tests.descent_oracle import plain_descent
 
 
 @pytest.fixture(scope="module")
@@ -23,18 +23,6 @@ def link4():
 @pytest.fixture(scope="module")
 def link2():
     return load_object("kuka_link_2")
-
-
-def plain_descent(a, b, pose_a, pose_b, tol=1e-12):
-    """Distance by the plain GJK descent on the shapes' own supports (no hulls, no patches)."""
-    ka, kb_ = a.kernel_data(), b.kernel_data()
-    R, t = np.empty((3, 3)), np.empty(3)
-    kb.relative_pose(pose_a, pose_b, R, t)
-    work = np.empty((gjk.WORK_ROWS, 4))
-    warm = np.zeros(gjk.WARM_SIZE, dtype=np.int64)
-    st, k, v0, v1, v2, vv, lower, it = gjk.descend(ka.kind, ka.fdata, ka.idata, kb_.kind, kb_.fdata, kb_.idata, R, t,
-                                                   tol, tol, 2000, np.zeros(3), warm, work)
-    return st, np.sqrt(vv) - ka.margin - kb_.margin, lower - ka.margin - kb_.margin
 
 
 @pytest.mark.parametrize("R", [0.3, 2.0])

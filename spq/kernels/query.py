@@ -48,11 +48,14 @@ from spq.kernels.gjk import (
     certify_overlap,
     descend,
 )
+from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_pair
 from spq.kernels.superellipsoid_support import FDATA_SIZE
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
+from spq.kernels.frames import rot_to_a, rot_to_b, to_a, to_b
+from spq.kernels.torus_ball import aitken_on_circle, far_ball_centre, torus_against_segment
 from spq.kernels.stp_support import (
     F_R,
     IDX_E,
@@ -121,70 +124,6 @@ def small_sphere_of_hull_vertex(ix, h):
     if h < 0 or h >= ix[IDX_H]:
         return -1
     return ix[ix[IDX_HULL_MAP] + h]
-
-
-@kernel
-def _circle_point(f, ix, p, x0, x1, x2, side):
-    """The point of torus p's centre circle in the direction of x (side 1) or opposite it (side -1),
-    seen from the circle's centre in its plane; (False, 0, 0, 0) if x is on the axis."""
-    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
-    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
-    w0, w1, w2 = x0 - m0, x1 - m1, x2 - m2
-    we = w0 * e0 + w1 * e1 + w2 * e2
-    w0, w1, w2 = w0 - we * e0, w1 - we * e1, w2 - we * e2
-    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    if not (wn > 0.0):
-        return False, 0.0, 0.0, 0.0
-    s = side * a / wn
-    return True, m0 + s * w0, m1 + s * w1, m2 + s * w2
-
-
-@kernel
-def far_ball_centre(f, ix, p, c0, c1, c2, q0, q1, q2):
-    """Centre of patch p's ball facing the point q (local frame): a sphere's own centre (c), or for
-    a torus the point of its centre circle farthest from q. The STP-BV lies in every ball of radius
-    R centred on the torus's circle arc, so facing q its distance is largest, and exact, there."""
-    if p < ix[IDX_V] + ix[IDX_F]:
-        return c0, c1, c2
-    ok, y0, y1, y2 = _circle_point(f, ix, p, q0, q1, q2, -1.0)
-    return (y0, y1, y2) if ok else (c0, c1, c2)
-
-
-@kernel
-def aitken_on_circle(f, ix, p, x0, x1, x2, y0, y1, y2, z0, z1, z2):
-    """The limit of a linearly converging sequence x, y, z of points on torus p's centre circle,
-    by Aitken's extrapolation along the last step, put back on the circle; z if the steps do not
-    contract."""
-    d0, d1, d2 = y0 - x0, y1 - x1, y2 - x2
-    g0, g1, g2 = z0 - y0, z1 - y1, z2 - y2
-    dd = d0 * d0 + d1 * d1 + d2 * d2
-    if not (dd > 0.0):
-        return z0, z1, z2
-    lam = (g0 * d0 + g1 * d1 + g2 * d2) / dd
-    if not (abs(lam) < 0.9):
-        return z0, z1, z2
-    s = lam / (1.0 - lam)
-    ok, w0, w1, w2 = _circle_point(f, ix, p, z0 + s * g0, z1 + s * g1, z2 + s * g2, 1.0)
-    return (w0, w1, w2) if ok else (z0, z1, z2)
-
-
-@kernel
-def _to_a(R, t, x0, x1, x2):
-    return (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0], R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1],
-            R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2])
-
-
-@kernel
-def _to_b(R, t, x0, x1, x2):
-    y0, y1, y2 = x0 - t[0], x1 - t[1], x2 - t[2]
-    return (R[0, 0] * y0 + R[1, 0] * y1 + R[2, 0] * y2, R[0, 1] * y0 + R[1, 1] * y1 + R[2, 1] * y2,
-            R[0, 2] * y0 + R[1, 2] * y1 + R[2, 2] * y2)
-
-
-@kernel
-def _rot_to_b(R, x0, x1, x2):
-    return (R[0, 0] * x0 + R[1, 0] * x1 + R[2, 0] * x2, R[0, 1] * x0 + R[1, 1] * x1 + R[2, 1] * x2,
-            R[0, 2] * x0 + R[1, 2] * x1 + R[2, 2] * x2)
 
 
 @kernel
@@ -282,12 +221,6 @@ def _torus_step(f, ix, p, d0, d1, d2, m0, m1, m2, x0, x1, x2, exact, bp, lt, lh,
 
 
 @kernel
-def _rot_to_a(R, x0, x1, x2):
-    return (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2, R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2,
-            R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2)
-
-
-@kernel
 def _support_of_side(k, f, ix, p, d0, d1, d2, warm, slot, out):
     """Core support along d (local frame) into out; for an STP-BV, patch p's. Returns False (out
     unset) if p does not own d: another patch's support would lie farther along d than p's ball
@@ -340,11 +273,11 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
     if not known & KNOWN_A:
         for c in range(3):
             sa[c] += mA * (m0, m1, m2)[c]
-    e0, e1, e2 = _rot_to_b(R, -m0, -m1, -m2)
+    e0, e1, e2 = rot_to_b(R, -m0, -m1, -m2)
     if not _owned_support(known & KNOWN_B, kB, fB, iB, pb, e0, e1, e2, warm, 1, tmp):
         return False
     if not known & KNOWN_B:
-        sb[0], sb[1], sb[2] = _to_a(R, t, tmp[0], tmp[1], tmp[2])
+        sb[0], sb[1], sb[2] = to_a(R, t, tmp[0], tmp[1], tmp[2])
         for c in range(3):
             sb[c] -= mB * (m0, m1, m2)[c]
     for c in range(3):
@@ -379,71 +312,6 @@ def _closest_on_segment(s0, s1, s2, t0, t1, t2, x0, x1, x2):
     return s0 + lam * g0, s1 + lam * g1, s2 + lam * g2
 
 
-SEGMENT_NEWTON_STEPS = 60  # safeguarded Newton steps of the torus-segment solve (a handful in practice)
-SEGMENT_PARAMETER_TOL = 1e-15  # step of the segment parameter at which it stops
-
-
-@kernel
-def _phi_slope(a, dg, gg, pp, pq, qq, lam):
-    """(phi'/2, phi''/2) at segment parameter lam, phi as in torus_against_segment, from the dot
-    products of d = s - m, g = t - s and their in-plane parts p, q."""
-    ww = max(0.0, pp + 2.0 * lam * pq + lam * lam * qq)  # |w(lam)|^2
-    if not (ww > 0.0):
-        return dg + lam * gg, gg
-    wn = math.sqrt(ww)
-    wq = pq + lam * qq
-    return dg + lam * gg + a * wq / wn, gg + a * (qq * ww - wq * wq) / (ww * wn)
-
-
-@kernel
-def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2):
-    """Torus p's ball nearest to the segment s-t (local frame): (x, y), y the segment's point nearest
-    to the patch and x = y - the ball's centre, the circle point farthest from y.
-
-    A torus patch lies in every ball of radius R centred on its circle, so its distance to a point
-    y is that to the farthest circle point, minus R: sqrt(phi), phi(y) = |y - m|^2 + 2 a |w| + a^2
-    (m, a: the circle's centre and radius; w: y - m within the circle's plane). phi is convex along
-    the segment, so its minimum there is found by Newton steps on the segment parameter, kept in a
-    bracket where phi' changes sign (bisection when a step leaves it)."""
-    k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
-    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
-    d0, d1, d2 = s0 - m0, s1 - m1, s2 - m2
-    g0, g1, g2 = t0 - s0, t1 - s1, t2 - s2
-    de = d0 * e0 + d1 * e1 + d2 * e2
-    ge = g0 * e0 + g1 * e1 + g2 * e2
-    p0, p1, p2 = d0 - de * e0, d1 - de * e1, d2 - de * e2  # in-plane parts of y(lam) - m = d + lam g
-    q0, q1, q2 = g0 - ge * e0, g1 - ge * e1, g2 - ge * e2
-    dg = d0 * g0 + d1 * g1 + d2 * g2
-    gg = g0 * g0 + g1 * g1 + g2 * g2
-    pq = p0 * q0 + p1 * q1 + p2 * q2
-    qq = q0 * q0 + q1 * q1 + q2 * q2
-    pp = p0 * p0 + p1 * p1 + p2 * p2
-    lam = 0.0
-    if gg > 0.0 and _phi_slope(a, dg, gg, pp, pq, qq, 0.0)[0] < 0.0:
-        lam = 1.0
-        if _phi_slope(a, dg, gg, pp, pq, qq, 1.0)[0] > 0.0:  # the minimum is inside: phi' = 0 there
-            lo, hi = 0.0, 1.0
-            lam = 0.5
-            for _ in range(SEGMENT_NEWTON_STEPS):
-                slope, curve = _phi_slope(a, dg, gg, pp, pq, qq, lam)
-                if slope > 0.0:
-                    hi = lam
-                else:
-                    lo = lam
-                nxt = lam - slope / curve if curve > 0.0 else 0.5 * (lo + hi)
-                if not (lo < nxt < hi):
-                    nxt = 0.5 * (lo + hi)
-                done = abs(nxt - lam) <= SEGMENT_PARAMETER_TOL
-                lam = nxt
-                if done:
-                    break
-    y0, y1, y2 = s0 + lam * g0, s1 + lam * g1, s2 + lam * g2
-    ok, c0, c1, c2 = _circle_point(f, ix, p, y0, y1, y2, -1.0)
-    if not ok:
-        c0, c1, c2 = m0, m1, m2
-    return y0 - c0, y1 - c1, y2 - c2, y0, y1, y2
-
-
 @kernel
 def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
                       iscratch, fscratch, coherent, out):
@@ -474,7 +342,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             pa = q if q >= 0 else next_patch(fA, iA, pa, hint_a, not coherent, n0, n1, n2)
             ca0, ca1, ca2, margin_a = ball_of_patch(fA, iA, pa, n0, n1, n2)
             warm[0] = pa
-        e0, e1, e2 = _rot_to_b(R, -n0, -n1, -n2)
+        e0, e1, e2 = rot_to_b(R, -n0, -n1, -n2)
         if kB == STP:
             q = _first_patch(iB, hint_b) if coherent and pb < 0 else -1
             pb = q if q >= 0 else next_patch(fB, iB, pb, hint_b, not coherent, e0, e1, e2)
@@ -484,13 +352,13 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
         known = 0
         if kA == STP and kB == STP:
             # two balls: alternate the tori's far points, then the normal joins the centres
-            qa0, qa1, qa2 = _to_b(R, t, ca0, ca1, ca2)
+            qa0, qa1, qa2 = to_b(R, t, ca0, ca1, ca2)
             settled = BALL_SETTLED * math.sqrt((qa0 - cb0) ** 2 + (qa1 - cb1) ** 2 + (qa2 - cb2) ** 2)
             two_tori = pa >= iA[IDX_V] + iA[IDX_F] and pb >= iB[IDX_V] + iB[IDX_F]
             h0 = h1 = h2 = 0.0  # A's centre one alternation back (the current one: ca)
             for i in range(BALL_ALTERNATIONS):
                 cb0n, cb1n, cb2n = far_ball_centre(fB, iB, pb, cb0, cb1, cb2, qa0, qa1, qa2)
-                x0, x1, x2 = _to_a(R, t, cb0n, cb1n, cb2n)
+                x0, x1, x2 = to_a(R, t, cb0n, cb1n, cb2n)
                 ca0n, ca1n, ca2n = far_ball_centre(fA, iA, pa, ca0, ca1, ca2, x0, x1, x2)
                 moved = abs(ca0n - ca0) + abs(ca1n - ca1) + abs(ca2n - ca2) + abs(cb0n - cb0) + abs(cb1n - cb1) \
                     + abs(cb2n - cb2)
@@ -500,10 +368,10 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                     ca0n, ca1n, ca2n = aitken_on_circle(fA, iA, pa, h0, h1, h2, ca0, ca1, ca2, ca0n, ca1n, ca2n)
                 h0, h1, h2 = ca0, ca1, ca2
                 ca0, ca1, ca2, cb0, cb1, cb2 = ca0n, ca1n, ca2n, cb0n, cb1n, cb2n
-                qa0, qa1, qa2 = _to_b(R, t, ca0, ca1, ca2)
+                qa0, qa1, qa2 = to_b(R, t, ca0, ca1, ca2)
                 if moved <= settled:
                     break
-            x0, x1, x2 = _to_a(R, t, cb0, cb1, cb2)
+            x0, x1, x2 = to_a(R, t, cb0, cb1, cb2)
             g0, g1, g2 = x0 - ca0, x1 - ca1, x2 - ca2
             gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
             if gn <= margin_a + margin_b + tol_abs:
@@ -517,7 +385,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 core_a, margin_a2 = POINT, margin_a
             else:
                 core_b, margin_b2 = POINT, margin_b
-                tb0, tb1, tb2 = _to_a(R, t, cb0, cb1, cb2)
+                tb0, tb1, tb2 = to_a(R, t, cb0, cb1, cb2)
             tmp[0], tmp[1], tmp[2] = tb0 - ca0, tb1 - ca1, tb2 - ca2
             dirv[0], dirv[1], dirv[2] = n0, n1, n2
             # warm start: the polytope side's last support vertex and last simplex with the ball centre
@@ -559,9 +427,9 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             q2 = out[OUT_POINT_B + 2] + mB * m2
         else:
             p, fs, ist, c0, c1, c2 = pb, fB, iB, cb0, cb1, cb2
-            d0, d1, d2 = _rot_to_b(R, -o0, -o1, -o2)
-            u0, u1, u2 = _rot_to_b(R, -m0, -m1, -m2)
-            q0, q1, q2 = _to_b(R, t, out[OUT_POINT_A] - mA * m0, out[OUT_POINT_A + 1] - mA * m1,
+            d0, d1, d2 = rot_to_b(R, -o0, -o1, -o2)
+            u0, u1, u2 = rot_to_b(R, -m0, -m1, -m2)
+            q0, q1, q2 = to_b(R, t, out[OUT_POINT_A] - mA * m0, out[OUT_POINT_A + 1] - mA * m1,
                                out[OUT_POINT_A + 2] - mA * m2)
         x0, x1, x2 = u0, u1, u2
         y0, y1, y2 = q0, q1, q2  # the polytope side's witness for the new direction (local frame)
@@ -577,8 +445,8 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 s0, s1, s2 = work[8, 0] + ca0, work[8, 1] + ca1, work[8, 2] + ca2
                 t0, t1, t2 = work[9, 0] + ca0, work[9, 1] + ca1, work[9, 2] + ca2
             else:
-                s0, s1, s2 = _to_b(R, t, work[4, 0], work[4, 1], work[4, 2])
-                t0, t1, t2 = _to_b(R, t, work[5, 0], work[5, 1], work[5, 2])
+                s0, s1, s2 = to_b(R, t, work[4, 0], work[4, 1], work[4, 2])
+                t0, t1, t2 = to_b(R, t, work[5, 0], work[5, 1], work[5, 2])
             x0, x1, x2, y0, y1, y2 = torus_against_segment(fs, ist, p, s0, s1, s2, t0, t1, t2)
         kept = False
         if torus:
@@ -591,7 +459,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
         if kA == STP:
             n0, n1, n2 = x0 / xn, x1 / xn, x2 / xn
         else:
-            n0, n1, n2 = _rot_to_a(R, -x0 / xn, -x1 / xn, -x2 / xn)
+            n0, n1, n2 = rot_to_a(R, -x0 / xn, -x1 / xn, -x2 / xn)
         if kept:
             # the torus's ball solved exactly against this round's witness feature: if that is still
             # the witness along the new normal, the supports certify it without another descent
@@ -599,7 +467,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 for c in range(3):
                     out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (n0, n1, n2)[c]
             else:
-                w0, w1, w2 = _to_a(R, t, y0, y1, y2)
+                w0, w1, w2 = to_a(R, t, y0, y1, y2)
                 for c in range(3):
                     out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (n0, n1, n2)[c]
             if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch, 0,
@@ -779,13 +647,13 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
     hint = small_sphere_of_hull_vertex(iB, scratch[1])
     if not ok or hint < 0:
         return False
-    s0, s1, s2 = _to_b(R, t, s0, s1, s2)
-    t0, t1, t2 = _to_b(R, t, t0, t1, t2)
+    s0, s1, s2 = to_b(R, t, s0, s1, s2)
+    t0, t1, t2 = to_b(R, t, t0, t1, t2)
     p, u0, u1, u2, y0, y1, y2 = march_to_feature(fB, iB, hint, s0, s1, s2, t0, t1, t2)
     if p < 0:
         return False
-    m0, m1, m2 = _rot_to_a(R, -u0, -u1, -u2)
-    w0, w1, w2 = _to_a(R, t, y0, y1, y2)
+    m0, m1, m2 = rot_to_a(R, -u0, -u1, -u2)
+    w0, w1, w2 = to_a(R, t, y0, y1, y2)
     for c in range(3):
         out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (m0, m1, m2)[c]
     settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, p, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
@@ -815,19 +683,24 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     (in/out; zeros for a cold start). iwork: int64 (IWORK_SIZE,) scratch. work: (WORK_ROWS, 4)
     scratch. out: (OUT_SIZE,) result vector, in A's frame. Returns the status code.
 
-    With an STP-BV on either side: first the patches that faced each other in the last query; then
-    a loose search on the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and
+    With an STP-BV on either side: first the patches that faced each other in the last query (against
+    a polytope by coherent_ball.coherent_ball_finish, else finish_on_patches); then a loose search on the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and
     whose normal points at the facing patches; its simplex may settle the query at once
     (settle_on_small_spheres, settle_on_feature), else it is settled on those patches
     (finish_on_patches); if that fails, the plain descent on the STP-BVs themselves.
     """
     extra = 0
     if kA == STP or kB == STP:
+        n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
+        if n > 0.0:  # coherence: the patches that faced each other last time
+            used = coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io,
+                                        warm, work, out)
+            if used >= 0:
+                return _done(out, used, dir_io)
         scratch = iwork[0:WARM_SIZE]
         scratch[:] = 0
         fscratch = work[DESCENT_ROWS:PROBE_ROW, 0:3]
-        n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
-        if n > 0.0:  # coherence: the patches that faced each other last time
+        if n > 0.0:
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
                                      dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, work, scratch, fscratch, True,
                                      out)
