@@ -99,7 +99,7 @@ def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel, max_iter, w
         core = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         if inside or not (core - rad - mP > tol_abs):
             break
-        s = polytope_support_index(fP, iP, -v0, -v1, -v2, s)
+        s = polytope_support_index(fP, iP, -v0, -v1, -v2)
         gap = v0 * (v0 - (fP[3 * s] - c0)) + v1 * (v1 - (fP[3 * s + 1] - c1)) + v2 * (v2 - (fP[3 * s + 2] - c2))
         if gap <= (tol_abs + tol_rel * (core - rad - mP)) * core:
             return True, k, v0, v1, v2, core, s, it

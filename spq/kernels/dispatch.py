@@ -29,7 +29,7 @@ def support_local(kind, f, ix, d0, d1, d2, warm, out):
     next call.
     """
     if kind == POLYTOPE:
-        i = polytope_support_index(f, ix, d0, d1, d2, warm)
+        i = polytope_support_index(f, ix, d0, d1, d2)
         out[0] = f[3 * i]
         out[1] = f[3 * i + 1]
         out[2] = f[3 * i + 2]

@@ -140,7 +140,7 @@ def find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2):
         return p, steps
     hull_f = f[o_hull:o_hull + 3 * H]
     hull_ix = ix[ix[IDX_HULL]:ix[IDX_HULL_MAP]]
-    h = polytope_support_index(hull_f, hull_ix, u0, u1, u2, -1)
+    h = polytope_support_index(hull_f, hull_ix, u0, u1, u2)
     p, steps = find_march(f, ix, o_bound, ix[ix[IDX_HULL_MAP] + h], u0, u1, u2)
     return p, steps + 1
 

@@ -9,7 +9,7 @@ from scipy.spatial import ConvexHull, QhullError
 from spq.io.mesh import load_mesh_vertices
 from spq.io.qhull import read_qhull_off
 from spq.kernels import kinds
-from spq.kernels.support import cube_map_table
+from spq.kernels.support import cell_candidates, cube_map_size
 from spq.shapes.base import KernelData, Shape
 from spq.validation import as_points
 
@@ -114,11 +114,11 @@ class Polyhedron(Shape):
     def kernel_data(self) -> KernelData:
         if self._kernel is None:
             n = len(self.vertices)
-            G = kinds.CUBE_MAP_CELLS
-            table = cube_map_table(self.vertices, G)
-            table_start = 3 + (n + 1) + len(self.adjacency)
-            idata = np.concatenate([[n, G, table_start], self.adjacency_offsets, self.adjacency, table])
-            idata = idata.astype(np.int64)
+            G = cube_map_size(n, kinds.CUBE_MAP_CELLS)
+            offsets, candidates = cell_candidates(self.vertices, G)
+            cells_start = 3
+            offsets += cells_start + len(offsets)  # positions in idata
+            idata = np.concatenate([[n, G, cells_start], offsets, candidates]).astype(np.int64)
             self._kernel = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), idata)
         return self._kernel
 
