@@ -26,6 +26,7 @@ import numpy as np
 
 from spq.kernels import scene as kscene
 from spq.kernels.batch import query_scratch
+from spq.kernels.kinds import IDATA_DTYPE
 from spq.kernels.gjk import (
     OUT_DISTANCE,
     OUT_ITERATIONS,
@@ -319,8 +320,8 @@ class Scene:
         self._slot_frange = np.array(frange, dtype=np.int64).reshape(ns, 2)
         self._slot_irange = np.array(irange, dtype=np.int64).reshape(ns, 2)
         self._fpool = np.ascontiguousarray(np.concatenate(fparts) if fparts else np.zeros(0))
-        self._ipool = np.ascontiguousarray(np.concatenate(iparts) if iparts else np.zeros(0, dtype=np.int64),
-                                           dtype=np.int64)
+        self._ipool = np.ascontiguousarray(np.concatenate(iparts) if iparts else np.zeros(0, dtype=IDATA_DTYPE),
+                                           dtype=IDATA_DTYPE)
         self._slot_centre = np.array(centre, dtype=np.float64).reshape(ns, 3)
         self._slot_radius = np.array(radius, dtype=np.float64)
         self._pair_slots = np.array([[slot_of[(a, sa)], slot_of[(b, sb)]]

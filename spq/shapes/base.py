@@ -14,7 +14,7 @@ class KernelData:
     kind: int
     margin: float
     fdata: np.ndarray  # float64, C-contiguous
-    idata: np.ndarray  # int64, C-contiguous
+    idata: np.ndarray  # kinds.IDATA_DTYPE (int32), C-contiguous
 
 
 class Shape:

@@ -118,7 +118,7 @@ class Polyhedron(Shape):
             offsets, candidates = cell_candidates(self.vertices, G)
             cells_start = 3
             offsets += cells_start + len(offsets)  # positions in idata
-            idata = np.concatenate([[n, G, cells_start], offsets, candidates]).astype(np.int64)
+            idata = np.concatenate([[n, G, cells_start], offsets, candidates]).astype(kinds.IDATA_DTYPE)
             self._kernel = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), idata)
         return self._kernel
 

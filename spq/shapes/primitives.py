@@ -14,7 +14,7 @@ class Sphere(Shape):
 
     def __init__(self, radius: float):
         self.radius = as_positive(radius, "radius")
-        self._kernel = KernelData(kinds.POINT, self.radius, np.zeros(1), np.zeros(1, dtype=np.int64))
+        self._kernel = KernelData(kinds.POINT, self.radius, np.zeros(1), np.zeros(1, dtype=kinds.IDATA_DTYPE))
 
     def kernel_data(self) -> KernelData:
         return self._kernel
@@ -31,7 +31,7 @@ class Box(Shape):
 
     def __init__(self, hx: float, hy: float, hz: float):
         self.half_extents = np.array([as_positive(hx, "hx"), as_positive(hy, "hy"), as_positive(hz, "hz")])
-        self._kernel = KernelData(kinds.BOX, 0.0, self.half_extents.copy(), np.zeros(1, dtype=np.int64))
+        self._kernel = KernelData(kinds.BOX, 0.0, self.half_extents.copy(), np.zeros(1, dtype=kinds.IDATA_DTYPE))
 
     @classmethod
     def from_size(cls, sx: float, sy: float, sz: float) -> "Box":
@@ -56,7 +56,7 @@ class Capsule(Shape):
         self.radius = as_positive(radius, "radius")
         self.half_length = as_positive(half_length, "half_length")
         self._kernel = KernelData(kinds.SEGMENT, self.radius, np.array([self.half_length]),
-                                  np.zeros(1, dtype=np.int64))
+                                  np.zeros(1, dtype=kinds.IDATA_DTYPE))
 
     def kernel_data(self) -> KernelData:
         return self._kernel

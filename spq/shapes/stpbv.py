@@ -178,7 +178,7 @@ class STPBV(Shape):
             hull_f = self.hull.vertices if self.hull is not None else np.zeros((0, 3))
             fdata = np.concatenate([[self.r, self.R, topo.rho], topo.vertices.ravel(), topo.face_centres.ravel(),
                                     tori.ravel(), bounds.ravel(), hull_f.ravel()])
-            hull_i = self.hull.kernel_data().idata if self.hull is not None else np.zeros(0, dtype=np.int64)
+            hull_i = self.hull.kernel_data().idata if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
             o_po = ks.HEADER_SIZE
             o_rec = o_po + len(self.patch_offsets)
             o_hull = o_rec + self.records.size
@@ -187,7 +187,7 @@ class STPBV(Shape):
                       ks.METHOD_NAMES.index(self._method), len(self.hull_to_small), o_po, o_rec, o_hull, o_map]
             idata = np.concatenate([header, self.patch_offsets, self.records.ravel(), hull_i, self.hull_to_small])
             self._kernel = KernelData(kinds.STP, 0.0, np.ascontiguousarray(fdata, dtype=np.float64),
-                                      np.ascontiguousarray(idata, dtype=np.int64))
+                                      np.ascontiguousarray(idata, dtype=kinds.IDATA_DTYPE))
         return self._kernel
 
     def bounding_radius(self) -> float:

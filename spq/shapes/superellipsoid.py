@@ -44,7 +44,7 @@ POSE_SHIFT_BOUND = 0.25  # fit: max centre shift per axis, in units of the mean 
 POSE_TURN_BOUND = 0.5  # fit: max rotation-vector component of the frame refinement (rad)
 AXIS_RANGE = (1e-2, 1e2)  # fit: semi-axes searched within these multiples of the MVEE's smallest / largest
 INNER_DIRECTIONS = 200  # support points spanning the inner polytope, GJK's first phase between two of them
-_NO_IDATA = np.zeros(1, dtype=np.int64)  # the closed-form support reads no integer data
+_NO_IDATA = np.zeros(1, dtype=kinds.IDATA_DTYPE)  # the closed-form support reads no integer data
 INNER_SHRINK = 1e-9  # relative pull of the inner polytope's vertices towards the centre: inside despite rounding
 
 
