@@ -30,4 +30,4 @@ SEGMENT = 3
 STP = 4  # sphere-torus-patch bounding volume: layout in kernels/stp_support.py
 SUPERELLIPSOID = 5  # convex superellipsoid (CSE-BV): layout above and in kernels/superellipsoid_support.py
 
-CUBE_MAP_CELLS = 8  # least G, cells per cube-map face edge (6 * 8 * 8 = 384 cells); more on hulls of > 384 vertices
+CUBE_MAP_CELLS = 8  # least G, cells per cube-map face edge (6 * 8 * 8 = 384 cells); more on hulls of > 192 vertices
