@@ -84,13 +84,13 @@ def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel, max_iter, w
     work's FI rows (rows as _put_vertex's); the stop rule is the certificate's, on the distance
     minus rad and the margin mP. Returns (ok, k, v = nearest point - c, |v|, last support vertex,
     iterations); not ok when the point is within rad + mP + tol_abs, or the search stalls."""
-    W = work[0:4, 0:3]
+    W = work[0:4]
     lam = work[12]
     FI = work[20:22]
     it = 0
     while it < max_iter:
         it += 1
-        k, inside = reduce_simplex(W, work[4:8, 0:3], work[8:12, 0:3], FI, k, lam, work[16:20])
+        k, inside = reduce_simplex(W, work[4:8], work[8:12], FI, k, lam, work[16:20])
         v0 = v1 = v2 = 0.0
         for i in range(k):
             v0 += lam[i] * W[i, 0]
@@ -159,7 +159,7 @@ def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel,
         return -1
     c0, c1, c2, rad = ball_of_patch(fS, iS, patch, n0, n1, n2)
     c0, c1, c2 = _s_to_p(stp_a, R, t, c0, c1, c2)
-    W = work[0:4, 0:3]
+    W = work[0:4]
     FI = work[20:22]
     base = WARM_SIMPLEX_B if stp_a else WARM_SIMPLEX_A
     n = iP[0]

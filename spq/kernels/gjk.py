@@ -405,9 +405,9 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
     Returns (status, k, v0, v1, v2, |v|^2, lower bound, iterations); the simplex (k points) and
     its weights stay in work. TOUCHING here means |v| <= tol_abs, overlap not yet decided.
     """
-    W = work[0:4, 0:3]
-    PA = work[4:8, 0:3]
-    PB = work[8:12, 0:3]
+    W = work[0:4]
+    PA = work[4:8]
+    PB = work[8:12]
     lam = work[12]
     pa = work[13]
     pb = work[14]

@@ -699,7 +699,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
                 return _done(out, used, dir_io)
         scratch = iwork[0:WARM_SIZE]
         scratch[:] = 0
-        fscratch = work[DESCENT_ROWS:PROBE_ROW, 0:3]
+        fscratch = work[DESCENT_ROWS:PROBE_ROW]
         if n > 0.0:
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
                                      dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, work, scratch, fscratch, True,
@@ -718,7 +718,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         gap = math.sqrt(vv) - ma - mb
         if status == OVERLAPPING or (status != FAILED and gap < -tol_abs):
             # the grown hulls overlap, and each STP-BV contains its grown hull
-            _finish(OVERLAPPING, k, work[12], work[4:8, 0:3], work[8:12, 0:3], v0, v1, v2, vv, lower, it, ma, mb,
+            _finish(OVERLAPPING, k, work[12], work[4:8], work[8:12], v0, v1, v2, vv, lower, it, ma, mb,
                     tol_abs, dir_io, out)
             return int(out[OUT_STATUS])
         if status == SEPARATED and vv > 0.0:
@@ -745,7 +745,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     if status == TOUCHING and tol_abs > 0.0:
         status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm,
                                  work[PROBE_ROW:WORK_ROWS], iwork[WARM_SIZE:IWORK_SIZE])
-    _finish(status, k, work[12], work[4:8, 0:3], work[8:12, 0:3], v0, v1, v2, vv, lower, it + extra, mA, mB,
+    _finish(status, k, work[12], work[4:8], work[8:12], v0, v1, v2, vv, lower, it + extra, mA, mB,
             tol_abs, dir_io, out)
     return int(out[OUT_STATUS])
 
@@ -760,8 +760,8 @@ def smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
     status, k, v0, v1, v2, vv, lower, it = descend(POLYTOPE, fA[FDATA_SIZE:], iA, POLYTOPE, fB[FDATA_SIZE:], iB, R,
                                                    t, tol_abs, max(tol_rel, INNER_REL_TOL), max_iter, dir_io, warm,
                                                    work)
-    PA = work[4:8, 0:3]
-    PB = work[8:12, 0:3]
+    PA = work[4:8]
+    PB = work[8:12]
     lam = work[12]
     if status == OVERLAPPING:
         _finish(status, k, lam, PA, PB, v0, v1, v2, vv, lower, it, mA, mB, tol_abs, dir_io, out)
@@ -771,7 +771,7 @@ def smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
         return -1 - it
     ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(fA, fB, R, t, -v0 / upper, -v1 / upper, -v2 / upper,
                                                               0.0, tol_abs, tol_rel, PA[0], PB[0],
-                                                              work[13:DESCENT_ROWS, 0:3])
+                                                              work[13:DESCENT_ROWS])
     it += evaluations
     if not ok:
         dir_io[0], dir_io[1], dir_io[2] = m0, m1, m2
