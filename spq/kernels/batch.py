@@ -112,9 +112,16 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)),
-                np.empty(IWORK_SIZE, dtype=np.int64), out)
+    _posed_query_call(fA, iA, fB, iB, ints, floats, TA, TB, np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)),
+                      np.empty(IWORK_SIZE, dtype=np.int64), out)
     return POSE_OK
+
+
+@kernel
+def _posed_query_call(fA, iA, fB, iB, ints, floats, TA, TB, R, t, work, iwork, out):
+    """posed_query (coherent) as a call, outside query_one's reference counting: gjk_query, inlined
+    into it, holds views (hull_core's) that a kernel with NRT would release without having taken."""
+    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, R, t, work, iwork, out)
 
 
 def query_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

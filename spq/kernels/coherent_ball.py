@@ -132,7 +132,7 @@ def _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, m0, m1
     return _s_to_p(stp_a, R, t, x0, x1, x2)
 
 
-@kernel
+@kernel(inline="always")
 def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, warm, work, out):
     """Settle an STP-BV-against-polytope query on the last query's patch and polytope feature.
 

@@ -674,7 +674,7 @@ def hull_core(k, m, f, ix):
     return k, m, f[0:f.shape[0]], ix[0:ix.shape[0]]
 
 
-@kernel
+@kernel(inline="always")
 def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, iwork, work, out):
     """Distance between core A (+ margin mA) and core B (+ margin mB), B at (R, t) in A's frame.
 
@@ -688,6 +688,10 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     whose normal points at the facing patches; its simplex may settle the query at once
     (settle_on_small_spheres, settle_on_feature), else it is settled on those patches
     (finish_on_patches); if that fails, the plain descent on the STP-BVs themselves.
+
+    Inlined into its callers (and coherent_ball_finish into it): a compiled call passes every
+    array as a struct of 7 to 9 words on the stack, and the two calls cost about a fifth of a
+    coherent robot-scene query. A kernel with NRT must not inline it (see spq.kernels.jit).
     """
     extra = 0
     if kA == STP or kB == STP:
