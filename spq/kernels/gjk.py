@@ -234,7 +234,7 @@ def closest_on_tetrahedron(W, lam, scratch, scratch2):
     return mask, d2, False
 
 
-@kernel
+@kernel(inline="always")
 def reduce_simplex(W, PA, PB, FI, k, lam, scratch):
     """Replace the simplex (k points) by the smallest face holding its point closest to the origin.
 
