@@ -26,7 +26,8 @@ import numpy as np
 
 from spq.kernels import scene as kscene
 from spq.kernels.batch import query_scratch
-from spq.kernels.kinds import IDATA_DTYPE
+from spq.kernels.kinds import IDATA_DTYPE, POLYTOPE, STP
+from spq.kernels.stp_support import IDX_H, IDX_HULL
 from spq.kernels.gjk import (
     OUT_DISTANCE,
     OUT_ITERATIONS,
@@ -281,47 +282,71 @@ class Scene:
         return np.array(pairs, dtype=np.int64).reshape(-1, 2), kinds_
 
     def _pack(self) -> None:
-        """Flat slot and pair arrays for the compiled call."""
-        slot_of = {}
-        link, offset, kind, margin, frange, irange, centre, radius = [], [], [], [], [], [], [], []
-        fparts, iparts = [], []
-        fpos = ipos = 0
+        """Flat slot and pair arrays for the compiled call.
+
+        A body whose STP-BV's underlying hull is its own PCH (the same vertices, in the same order)
+        stores that hull once: the STP-BV's data ends with its hull (spq.kernels.stp_support), so
+        its pool ranges run on into the PCH's. This halves the hulls' share of the working set,
+        which the all-pairs loop sweeps through in a random order."""
+        slot_of, keys = {}, []
         for pair, sides in zip(self.pairs, self.pair_kinds):
             for bi, bv in zip(pair, sides):
-                if (bi, bv) in slot_of:
-                    continue
-                body = self.bodies[bi]
-                shape, local = self._volume(body, bv)
-                kd = shape.kernel_data()
-                slot_of[(bi, bv)] = len(link)
-                link.append(body.link)
-                offset.append(body.offset @ local)
-                kind.append(kd.kind)
-                margin.append(kd.margin)
-                frange.append((fpos, fpos + len(kd.fdata)))
-                irange.append((ipos, ipos + len(kd.idata)))
-                fpos += len(kd.fdata)
-                ipos += len(kd.idata)
-                fparts.append(kd.fdata)
-                iparts.append(kd.idata)
-                if bv == "cse":
-                    c, rad = np.zeros(3), shape.bounding_radius()
-                elif bv == "stp":
-                    c, rad = _bounding_sphere(shape.topology.vertices, shape.r)
-                else:
-                    c, rad = _bounding_sphere(shape.vertices, kd.margin)
-                centre.append(c)
-                radius.append(rad)
-        ns = len(link)
-        self._slot_link = np.array(link, dtype=np.int64)
-        self._slot_offset = np.ascontiguousarray(np.array(offset, dtype=np.float64).reshape(ns, 4, 4))
-        self._slot_kind = np.array(kind, dtype=np.int64)
-        self._slot_margin = np.array(margin, dtype=np.float64)
+                if (bi, bv) not in slot_of:
+                    slot_of[(bi, bv)] = len(keys)
+                    keys.append((bi, bv))
+        shapes = [self._volume(self.bodies[bi], bv) for bi, bv in keys]
+        data = [shape.kernel_data() for shape, _ in shapes]
+        fparts, iparts = [], []
+        frange, irange = [None] * len(keys), [None] * len(keys)
+        size = [0, 0]
+
+        def put(fdata, idata):
+            start = tuple(size)
+            fparts.append(fdata)
+            iparts.append(idata)
+            size[0] += len(fdata)
+            size[1] += len(idata)
+            return start
+
+        for s, (bi, bv) in enumerate(keys):
+            if frange[s] is not None:
+                continue
+            twin = slot_of.get((bi, "pch" if bv == "stp" else "stp")) if bv in ("stp", "pch") else None
+            stp, pch = (s, twin) if bv == "stp" else (twin, s)
+            if twin is not None and _hull_is_tail(data[stp], data[pch]):
+                nf, ni = len(data[pch].fdata), len(data[pch].idata)
+                f0, i0 = put(data[stp].fdata[:-nf], data[stp].idata[:-ni])
+                f1, i1 = put(data[pch].fdata, data[pch].idata)
+                frange[stp], irange[stp] = (f0, f1 + nf), (i0, i1 + ni)
+                frange[pch], irange[pch] = (f1, f1 + nf), (i1, i1 + ni)
+            else:
+                f0, i0 = put(data[s].fdata, data[s].idata)
+                frange[s], irange[s] = (f0, f0 + len(data[s].fdata)), (i0, i0 + len(data[s].idata))
+        centre, radius = [], []
+        for (bi, bv), (shape, _), kd in zip(keys, shapes, data):
+            if bv == "cse":
+                c, rad = np.zeros(3), shape.bounding_radius()
+            elif bv == "stp":
+                c, rad = _bounding_sphere(shape.topology.vertices, shape.r)
+            else:
+                c, rad = _bounding_sphere(shape.vertices, kd.margin)
+            centre.append(c)
+            radius.append(rad)
+        ns = len(keys)
+        self._slot_link = np.array([self.bodies[bi].link for bi, _ in keys], dtype=np.int64)
+        self._slot_offset = np.ascontiguousarray(
+            np.array([self.bodies[bi].offset @ local for (bi, _), (_, local) in zip(keys, shapes)],
+                     dtype=np.float64).reshape(ns, 4, 4))
+        self._slot_kind = np.array([kd.kind for kd in data], dtype=np.int64)
+        self._slot_margin = np.array([kd.margin for kd in data], dtype=np.float64)
         self._slot_frange = np.array(frange, dtype=np.int64).reshape(ns, 2)
         self._slot_irange = np.array(irange, dtype=np.int64).reshape(ns, 2)
         self._fpool = np.ascontiguousarray(np.concatenate(fparts) if fparts else np.zeros(0))
         self._ipool = np.ascontiguousarray(np.concatenate(iparts) if iparts else np.zeros(0, dtype=IDATA_DTYPE),
                                            dtype=IDATA_DTYPE)
+        for kd, (f0, f1), (i0, i1) in zip(data, frange, irange):  # the shared ranges read back each slot's own data
+            if not (np.array_equal(self._fpool[f0:f1], kd.fdata) and np.array_equal(self._ipool[i0:i1], kd.idata)):
+                raise RuntimeError("scene packing: a slot's pool range differs from its kernel data")
         self._slot_centre = np.array(centre, dtype=np.float64).reshape(ns, 3)
         self._slot_radius = np.array(radius, dtype=np.float64)
         self._pair_slots = np.array([[slot_of[(a, sa)], slot_of[(b, sb)]]
@@ -343,7 +368,7 @@ class Scene:
         """Forget every pair's warm start."""
         tol, rel_tol, max_iter = self._tol
         self._pair_ints, self._pair_floats = kscene.pack_pair_state(
-            self._slot_kind, self._slot_margin, self._pair_slots, tol, rel_tol, max_iter)
+            self._slot_kind, self._slot_margin, self._slot_centre, self._pair_slots, tol, rel_tol, max_iter)
 
     @property
     def body_names(self) -> list[str]:
@@ -446,6 +471,15 @@ class Scene:
                     grad[j] += sign * m.q_multiplier[link] * float(n @ v)
                 link = m.parent[link]
         return grad
+
+
+def _hull_is_tail(stp, pch) -> bool:
+    """Whether an STP-BV's kernel data (stp) ends with exactly a polytope's (pch): its underlying
+    hull is that polytope, stored last (spq.kernels.stp_support)."""
+    nf, ni = len(pch.fdata), len(pch.idata)
+    return (stp.kind == STP and pch.kind == POLYTOPE and 0 < nf < len(stp.fdata) and 0 < ni < len(stp.idata)
+            and int(stp.idata[IDX_HULL]) == len(stp.idata) - ni and int(stp.idata[IDX_H]) * 3 == nf
+            and np.array_equal(stp.fdata[-nf:], pch.fdata) and np.array_equal(stp.idata[-ni:], pch.idata))
 
 
 def _load_hull(filename: str, scale, convex_dir, mesh_root, urdf_dir: Path, link: str) -> tuple[Polyhedron, str]:

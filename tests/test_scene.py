@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import spq
 from datasets.robots import ROBOTS
 from harness.robot_poses import smooth_trajectory
 from spq.kernels.gjk import OUT_DISTANCE, OUT_SIZE
@@ -272,6 +273,22 @@ def test_jvrc1_auto_puts_the_stp_bv_on_the_side_with_fewer_stp_features(jvrc1_au
     counts = jvrc1_auto.kind_counts()
     assert sum(counts.values()) == len(jvrc1_auto.pairs) == 561
     assert counts == {"stp-pch": 561}
+
+
+def test_jvrc1_auto_stores_shared_hulls_once_and_each_pair_matches_a_lone_query(jvrc1_auto, jvrc1_configurations):
+    """A body whose STP-BV's underlying hull is its PCH keeps one copy (the packing check reads every
+    slot's data back); the scene's pair distances equal lone spq.distance queries of the same shapes."""
+    slots = {(i, bv) for pair, kinds in zip(jvrc1_auto.pairs, jvrc1_auto.pair_kinds) for i, bv in zip(pair, kinds)}
+    own = sum(len(Scene._volume(jvrc1_auto.bodies[i], bv)[0].kernel_data().idata) for i, bv in slots)
+    assert len(jvrc1_auto._ipool) < own - 10_000  # some hulls are stored once
+    q = jvrc1_configurations[0]
+    result = jvrc1_auto.distances(q, coherent=False)
+    poses = jvrc1_auto.body_poses(q)
+    for k in range(0, len(jvrc1_auto.pairs), 7):
+        (a, b), (sa, sb) = jvrc1_auto.pairs[k], jvrc1_auto.pair_kinds[k]
+        A, B = (Scene._volume(jvrc1_auto.bodies[i], bv)[0] for i, bv in ((a, sa), (b, sb)))
+        lone = spq.distance(A, poses[a], B, poses[b])
+        assert abs(lone.distance - result.distance[k]) <= 1e-9, (jvrc1_auto.pair_names[k], lone.distance)
 
 
 @pytest.mark.engines

@@ -1,8 +1,10 @@
 """Compiled entry points around gjk_query: pose checks, frames, single and batched queries.
 
 Packing: ``ints = [kind_a, kind_b, max_iter, warm state (gjk.WARM_SIZE)]`` and
-``floats = [margin_a, margin_b, tol_abs, tol_rel, dx, dy, dz, R (9), t (3)]`` (dx, dy, dz: the
-warm-start search direction in A's frame; R, t: B's pose in A's frame at the previous query). Few arguments keep the Python-to-compiled call cheap for per-call use.
+``floats = [margin_a, margin_b, tol_abs, tol_rel, centre_a (3), centre_b (3), dx, dy, dz, R (9), t (3)]``
+(centre_a, centre_b: a point inside each core, in its own frame, that aims a cold start, zero for
+the frame origins; dx, dy, dz: the warm-start search direction in A's frame; R, t: B's pose in A's
+frame at the previous query). Few arguments keep the Python-to-compiled call cheap for per-call use.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ ROTATION_TOL = 1e-6  # same admissible error as spq.validation.ROTATION_TOL
 
 I_KIND_A, I_KIND_B, I_MAX_ITER, I_WARM = 0, 1, 2, 3
 INTS_SIZE = I_WARM + WARM_SIZE
-F_MARGIN_A, F_MARGIN_B, F_TOL_ABS, F_TOL_REL, F_DIR, F_PREV_R, F_PREV_T = 0, 1, 2, 3, 4, 7, 16
-FLOATS_SIZE = 19
+F_MARGIN_A, F_MARGIN_B, F_TOL_ABS, F_TOL_REL, F_CENTRES, F_DIR, F_PREV_R, F_PREV_T = 0, 1, 2, 3, 4, 10, 13, 22
+FLOATS_SIZE = 25
 COHERENT_ROTATION = 0.2  # max |R - R_prev| entry for the previous simplex to be re-used
 COHERENT_TRANSLATION = 0.2  # max |t - t_prev| / |t_prev| for the same
 
@@ -171,5 +173,6 @@ def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, R, t, work, iwor
         warm[:] = 0
         d[:] = 0.0
     gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
-              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, warm, iwork, work, row)
+              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, floats[F_CENTRES:F_CENTRES + 6], warm, iwork,
+              work, row)
     _to_world(TA, row)

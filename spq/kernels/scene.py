@@ -16,6 +16,7 @@ import numpy as np
 from spq.kernels.batch import (
     FLOATS_SIZE,
     INTS_SIZE,
+    F_CENTRES,
     F_MARGIN_A,
     F_MARGIN_B,
     F_TOL_ABS,
@@ -101,8 +102,9 @@ def scene_distances(parent, joint_type, joint_origin, joint_axis, q_index, q_mul
                        pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out[i])
 
 
-def pack_pair_state(slot_kind, slot_margin, pair_slots, tol_abs, tol_rel, max_iter):
-    """Fresh per-pair ints and floats rows (kinds, margins, tolerances; warm start zero)."""
+def pack_pair_state(slot_kind, slot_margin, slot_centre, pair_slots, tol_abs, tol_rel, max_iter):
+    """Fresh per-pair ints and floats rows (kinds, margins, bounding-sphere centres that aim a cold
+    start, tolerances; warm start zero)."""
     n = len(pair_slots)
     ints = np.zeros((n, INTS_SIZE), dtype=np.int64)
     floats = np.zeros((n, FLOATS_SIZE))
@@ -110,4 +112,5 @@ def pack_pair_state(slot_kind, slot_margin, pair_slots, tol_abs, tol_rel, max_it
     ints[:, I_KIND_A], ints[:, I_KIND_B], ints[:, I_MAX_ITER] = slot_kind[a], slot_kind[b], max_iter
     floats[:, F_MARGIN_A], floats[:, F_MARGIN_B] = slot_margin[a], slot_margin[b]
     floats[:, F_TOL_ABS], floats[:, F_TOL_REL] = tol_abs, tol_rel
+    floats[:, F_CENTRES:F_CENTRES + 3], floats[:, F_CENTRES + 3:F_CENTRES + 6] = slot_centre[a], slot_centre[b]
     return ints, floats

@@ -6,7 +6,9 @@ fdata = [r, R, rho, vertices (3V), face centres (3F), tori (7E: centre m, axis e
          boundaries (4B: axis, cos), underlying-hull vertices (3H)]
 idata = [V, F, E, B, method, H, then offsets below (header of IDX_* entries),
          patch offsets (P + 1), records (3 per record: boundary, side, neighbour patch),
-         underlying-hull polytope idata, hull vertex -> small sphere]
+         hull vertex -> small sphere, underlying-hull polytope idata (to the end)]
+The underlying hull comes last in both arrays, so a robot scene can store it once, shared with the
+body's own PCH (spq.scene).
 Patches are numbered small spheres 0..V-1, big spheres V..V+F-1, tori V+F..V+F+E-1.
 A record (b, side, q) of patch p says: p's region lies where g = v.axis_b - cos_b >= 0 (side +1)
 or g < 0 (side -1), and q lies across. Each boundary is stored once and read by its two patches
@@ -139,7 +141,7 @@ def find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2):
         p, steps = find_march(f, ix, o_bound, start, u0, u1, u2)
         return p, steps
     hull_f = f[o_hull:o_hull + 3 * H]
-    hull_ix = ix[ix[IDX_HULL]:ix[IDX_HULL_MAP]]
+    hull_ix = ix[ix[IDX_HULL]:ix.shape[0]]
     h = polytope_support_index(hull_f, hull_ix, u0, u1, u2)
     p, steps = find_march(f, ix, o_bound, ix[ix[IDX_HULL_MAP] + h], u0, u1, u2)
     return p, steps + 1

@@ -181,11 +181,12 @@ class STPBV(Shape):
             hull_i = self.hull.kernel_data().idata if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
             o_po = ks.HEADER_SIZE
             o_rec = o_po + len(self.patch_offsets)
-            o_hull = o_rec + self.records.size
-            o_map = o_hull + len(hull_i)
+            o_map = o_rec + self.records.size
+            o_hull = o_map + len(self.hull_to_small)
             header = [self.n_small, self.n_big, self.n_tori, len(self.boundary_cos),
                       ks.METHOD_NAMES.index(self._method), len(self.hull_to_small), o_po, o_rec, o_hull, o_map]
-            idata = np.concatenate([header, self.patch_offsets, self.records.ravel(), hull_i, self.hull_to_small])
+            # the hull last in both arrays: a scene may then store it once for this body's PCH and STP-BV
+            idata = np.concatenate([header, self.patch_offsets, self.records.ravel(), self.hull_to_small, hull_i])
             self._kernel = KernelData(kinds.STP, 0.0, np.ascontiguousarray(fdata, dtype=np.float64),
                                       np.ascontiguousarray(idata, dtype=kinds.IDATA_DTYPE))
         return self._kernel
