@@ -177,7 +177,7 @@ def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel,
             k += 1
     s = warm[WARM_FEATURE_A + side_p]
     it = 0
-    o_bound = _offsets(iS)[2]
+    o_planes = _offsets(iS)[2]
     n_spheres = iS[IDX_V] + iS[IDX_F]
     for step in range(PATCH_STEPS + 1):
         if step == PATCH_STEPS:
@@ -200,7 +200,7 @@ def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel,
         # the patch must own the direction to the polytope, -m (STP side's frame); else its neighbour
         # across the boundary it violates is tried, from the feature found
         u0, u1, u2 = _rot_p_to_s(stp_a, R, v0 / core, v1 / core, v2 / core)
-        nxt = march_step(fS, iS, o_bound, patch, u0, u1, u2)
+        nxt = march_step(fS, iS, o_planes, patch, u0, u1, u2)
         if nxt < 0:
             break
         patch = nxt

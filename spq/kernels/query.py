@@ -588,14 +588,14 @@ def march_to_feature(f, ix, p, s0, s1, s2, t0, t1, t2):
     so the segment is |y - centre| - radius from the body, exactly. Returns (patch, unit u, y);
     patch -1 if the walk does not settle within MARCH_TO_FEATURE_STEPS steps or the segment meets a
     ball."""
-    o_bound = _offsets(ix)[2]
+    o_planes = _offsets(ix)[2]
     for _ in range(MARCH_TO_FEATURE_STEPS):
         rad, x0, x1, x2, y0, y1, y2 = ball_against_feature(f, ix, p, s0, s1, s2, t0, t1, t2)
         xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
         if not (xn > rad):
             break
         u0, u1, u2 = x0 / xn, x1 / xn, x2 / xn
-        nxt = march_step(f, ix, o_bound, p, u0, u1, u2)
+        nxt = march_step(f, ix, o_planes, p, u0, u1, u2)
         if nxt < 0:
             return p, u0, u1, u2, y0, y1, y2
         p = nxt

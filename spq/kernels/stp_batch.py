@@ -38,13 +38,13 @@ def support_batch(f, ix, method, directions, coherent):
 def owner_counts(f, ix, directions):
     """Number of patches whose region holds each direction (m,)."""
     P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
-    o_faces, o_tori, o_bound, o_hull = _offsets(ix)
+    o_faces, o_tori, o_planes, o_hull = _offsets(ix)
     m = directions.shape[0]
     counts = np.zeros(m, dtype=np.int64)
     for k in range(m):
         d0, d1, d2 = directions[k, 0], directions[k, 1], directions[k, 2]
         n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         for p in range(P):
-            if in_region(f, ix, o_bound, p, d0 / n, d1 / n, d2 / n):
+            if in_region(f, ix, o_planes, p, d0 / n, d1 / n, d2 / n):
                 counts[k] += 1
     return counts

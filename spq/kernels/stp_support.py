@@ -3,16 +3,19 @@ direction, then take that sphere's or torus's support point (paper section III, 
 
 Layout (kind STP, see kinds.py):
 fdata = [r, R, rho, vertices (3V), face centres (3F), tori (7E: centre m, axis e, circle radius a),
-         boundaries (4B: axis, cos), underlying-hull vertices (3H)]
-idata = [V, F, E, B, method, H, then offsets below (header of IDX_* entries),
-         patch offsets (P + 1), records (3 per record: boundary, side, neighbour patch),
+         record planes (4 per record: axis, cos), underlying-hull vertices (3H)]
+idata = [V, F, E, number of records, method, H, then offsets below (header of IDX_* entries),
+         patch offsets (P + 1), records (2 per record: side, neighbour patch),
          hull vertex -> small sphere, underlying-hull polytope idata (to the end)]
 The underlying hull comes last in both arrays, so a robot scene can store it once, shared with the
 body's own PCH (spq.scene).
 Patches are numbered small spheres 0..V-1, big spheres V..V+F-1, tori V+F..V+F+E-1.
-A record (b, side, q) of patch p says: p's region lies where g = v.axis_b - cos_b >= 0 (side +1)
-or g < 0 (side -1), and q lies across. Each boundary is stored once and read by its two patches
-with opposite sides, so every direction has exactly one owner.
+A record (plane, side, q) of patch p says: p's region lies where g = v.axis - cos >= 0 (side +1)
+or g < 0 (side -1), and q lies across. Each region boundary is the plane of two records, one per
+patch, with opposite sides, so every direction has exactly one owner. The plane is stored with each
+record, next to its patch's others, rather than once: a region test then reads one contiguous run
+instead of a boundary index and a scattered boundary per record, a chain of cache misses that held
+most of the test's time.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ METHOD_HULL = 2
 METHOD_NAMES = ("naive", "march", "hull")
 
 # idata header
-IDX_V, IDX_F, IDX_E, IDX_B, IDX_METHOD, IDX_H = 0, 1, 2, 3, 4, 5
+IDX_V, IDX_F, IDX_E, IDX_NREC, IDX_METHOD, IDX_H = 0, 1, 2, 3, 4, 5
 IDX_PATCH_OFFSETS, IDX_RECORDS, IDX_HULL, IDX_HULL_MAP = 6, 7, 8, 9
 HEADER_SIZE = 10
 # fdata offsets
@@ -40,18 +43,16 @@ def _offsets(ix):
     V, F, E = ix[IDX_V], ix[IDX_F], ix[IDX_E]
     o_faces = F_VERTICES + 3 * V
     o_tori = o_faces + 3 * F
-    o_bound = o_tori + 7 * E
-    o_hull = o_bound + 4 * ix[IDX_B]
-    return o_faces, o_tori, o_bound, o_hull
+    o_planes = o_tori + 7 * E
+    o_hull = o_planes + 4 * ix[IDX_NREC]
+    return o_faces, o_tori, o_planes, o_hull
 
 
 @kernel
-def record_violation(f, ix, o_bound, rec, u0, u1, u2):
+def record_violation(f, ix, o_planes, rec, u0, u1, u2):
     """How far unit direction u is on the wrong side of record rec (<= 0: on its patch's side)."""
-    base = ix[IDX_RECORDS] + 3 * rec
-    b = ix[base]
-    side = ix[base + 1]
-    k = o_bound + 4 * b
+    side = ix[ix[IDX_RECORDS] + 2 * rec]
+    k = o_planes + 4 * rec
     g = u0 * f[k] + u1 * f[k + 1] + u2 * f[k + 2] - f[k + 3]
     if side > 0:
         return -g  # inside when g >= 0
@@ -60,17 +61,17 @@ def record_violation(f, ix, o_bound, rec, u0, u1, u2):
 
 
 @kernel
-def in_region(f, ix, o_bound, p, u0, u1, u2):
+def in_region(f, ix, o_planes, p, u0, u1, u2):
     """True if unit direction u is in patch p's VVR."""
     po = ix[IDX_PATCH_OFFSETS]
     for rec in range(ix[po + p], ix[po + p + 1]):
-        if record_violation(f, ix, o_bound, rec, u0, u1, u2) > 0.0:
+        if record_violation(f, ix, o_planes, rec, u0, u1, u2) > 0.0:
             return False
     return True
 
 
 @kernel
-def find_naive(f, ix, o_bound, u0, u1, u2):
+def find_naive(f, ix, o_planes, u0, u1, u2):
     """Scan all patches (O(n)); if rounding leaves u unowned, the least-violated patch."""
     P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
     po = ix[IDX_PATCH_OFFSETS]
@@ -78,7 +79,7 @@ def find_naive(f, ix, o_bound, u0, u1, u2):
     for p in range(P):
         worst = 0.0
         for rec in range(ix[po + p], ix[po + p + 1]):
-            worst = max(worst, record_violation(f, ix, o_bound, rec, u0, u1, u2))
+            worst = max(worst, record_violation(f, ix, o_planes, rec, u0, u1, u2))
         if worst <= 0.0:
             return p
         if worst < best_viol:
@@ -87,7 +88,7 @@ def find_naive(f, ix, o_bound, u0, u1, u2):
 
 
 @kernel
-def march_step(f, ix, o_bound, p, u0, u1, u2):
+def march_step(f, ix, o_planes, p, u0, u1, u2):
     """The next patch of the guided march from p, or -1 if u is in p's region (paper III.C.2).
 
     Small sphere: the torus across the most violated cone. Big sphere: across the first violated
@@ -98,10 +99,10 @@ def march_step(f, ix, o_bound, p, u0, u1, u2):
     worst = 0.0
     is_torus = p >= V + F
     for rec in range(ix[po + p], ix[po + p + 1]):
-        viol = record_violation(f, ix, o_bound, rec, u0, u1, u2)
+        viol = record_violation(f, ix, o_planes, rec, u0, u1, u2)
         if viol <= 0.0:
             continue
-        q = ix[ix[IDX_RECORDS] + 3 * rec + 2]
+        q = ix[ix[IDX_RECORDS] + 2 * rec + 1]
         if p < V:
             if viol > worst:
                 worst, nxt = viol, q
@@ -115,48 +116,48 @@ def march_step(f, ix, o_bound, p, u0, u1, u2):
 
 
 @kernel
-def find_march(f, ix, o_bound, start, u0, u1, u2):
+def find_march(f, ix, o_planes, start, u0, u1, u2):
     """Guided march from patch ``start``; capped at the patch count, then the naive scan.
 
     Returns (patch, steps)."""
     P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
     p = start if 0 <= start < P else 0
     for steps in range(P):
-        q = march_step(f, ix, o_bound, p, u0, u1, u2)
+        q = march_step(f, ix, o_planes, p, u0, u1, u2)
         if q < 0:
             return p, steps
         p = q
-    return find_naive(f, ix, o_bound, u0, u1, u2), P
+    return find_naive(f, ix, o_planes, u0, u1, u2), P
 
 
 @kernel
-def find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2):
+def find_hull(f, ix, o_planes, o_hull, start, u0, u1, u2):
     """The warm patch if it still holds u; else hill climb on the underlying convex hull to the
     farthest small sphere and march from it (paper III.C.3). Returns (patch, steps)."""
     P = ix[IDX_V] + ix[IDX_F] + ix[IDX_E]
-    if 0 <= start < P and in_region(f, ix, o_bound, start, u0, u1, u2):
+    if 0 <= start < P and in_region(f, ix, o_planes, start, u0, u1, u2):
         return start, 0
     H = ix[IDX_H]
     if H == 0:  # no underlying hull (fewer than 4 or coplanar centres): march from the start
-        p, steps = find_march(f, ix, o_bound, start, u0, u1, u2)
+        p, steps = find_march(f, ix, o_planes, start, u0, u1, u2)
         return p, steps
     hull_f = f[o_hull:o_hull + 3 * H]
     hull_ix = ix[ix[IDX_HULL]:ix.shape[0]]
     h = polytope_support_index(hull_f, hull_ix, u0, u1, u2)
-    p, steps = find_march(f, ix, o_bound, ix[ix[IDX_HULL_MAP] + h], u0, u1, u2)
+    p, steps = find_march(f, ix, o_planes, ix[ix[IDX_HULL_MAP] + h], u0, u1, u2)
     return p, steps + 1
 
 
 @kernel
 def find_patch(f, ix, method, start, u0, u1, u2):
     """(patch, steps) owning unit direction u, by METHOD_NAIVE, METHOD_MARCH or METHOD_HULL."""
-    o_faces, o_tori, o_bound, o_hull = _offsets(ix)
+    o_faces, o_tori, o_planes, o_hull = _offsets(ix)
     if method == METHOD_NAIVE:
-        p = find_naive(f, ix, o_bound, u0, u1, u2)
+        p = find_naive(f, ix, o_planes, u0, u1, u2)
         return p, p + 1  # patches scanned
     if method == METHOD_MARCH:
-        return find_march(f, ix, o_bound, start, u0, u1, u2)
-    return find_hull(f, ix, o_bound, o_hull, start, u0, u1, u2)
+        return find_march(f, ix, o_planes, start, u0, u1, u2)
+    return find_hull(f, ix, o_planes, o_hull, start, u0, u1, u2)
 
 
 @kernel(inline="always")
@@ -164,7 +165,7 @@ def ball_of_patch(f, ix, p, d0, d1, d2):
     """(ball centre x, y, z, ball radius) whose support is patch p's along directions d in its region:
     a small or big sphere, or for a torus the big ball centred at the circle point opposite d."""
     V, F = ix[IDX_V], ix[IDX_F]
-    o_faces, o_tori, o_bound, o_hull = _offsets(ix)
+    o_faces, o_tori, o_planes, o_hull = _offsets(ix)
     if p < V:
         k = F_VERTICES + 3 * p
         return f[k], f[k + 1], f[k + 2], f[F_R]

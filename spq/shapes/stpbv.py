@@ -174,19 +174,20 @@ class STPBV(Shape):
         if self._kernel is None:
             topo = self.topology
             tori = np.hstack([self.torus_centres, self.torus_axes, self.torus_radii[:, None]])
-            bounds = np.hstack([self.boundary_axes, self.boundary_cos[:, None]])
+            b = self.records[:, 0]
+            planes = np.hstack([self.boundary_axes[b], self.boundary_cos[b, None]])  # each record's own copy
             hull_f = self.hull.vertices if self.hull is not None else np.zeros((0, 3))
             fdata = np.concatenate([[self.r, self.R, topo.rho], topo.vertices.ravel(), topo.face_centres.ravel(),
-                                    tori.ravel(), bounds.ravel(), hull_f.ravel()])
+                                    tori.ravel(), planes.ravel(), hull_f.ravel()])
             hull_i = self.hull.kernel_data().idata if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
             o_po = ks.HEADER_SIZE
             o_rec = o_po + len(self.patch_offsets)
-            o_map = o_rec + self.records.size
+            o_map = o_rec + 2 * len(self.records)
             o_hull = o_map + len(self.hull_to_small)
-            header = [self.n_small, self.n_big, self.n_tori, len(self.boundary_cos),
+            header = [self.n_small, self.n_big, self.n_tori, len(self.records),
                       ks.METHOD_NAMES.index(self._method), len(self.hull_to_small), o_po, o_rec, o_hull, o_map]
             # the hull last in both arrays: a scene may then store it once for this body's PCH and STP-BV
-            idata = np.concatenate([header, self.patch_offsets, self.records.ravel(), self.hull_to_small, hull_i])
+            idata = np.concatenate([header, self.patch_offsets, self.records[:, 1:].ravel(), self.hull_to_small, hull_i])
             self._kernel = KernelData(kinds.STP, 0.0, np.ascontiguousarray(fdata, dtype=np.float64),
                                       np.ascontiguousarray(idata, dtype=kinds.IDATA_DTYPE))
         return self._kernel
