@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 import spq
 from spq.kernels import kinds
 from spq.kernels.dispatch import support_many
-from spq.kernels.support import cube_cell, cube_cell_centres, cube_cell_corners
+from spq.kernels.support import CELL_SLOTS, cell_candidates, cube_cell, cube_cell_centres, cube_cell_corners
 
 
 def _random_hull(seed, n=400):
@@ -61,16 +61,32 @@ def test_cube_cell_centres_fall_in_their_own_cells():
 def test_every_cells_candidates_hold_the_support_of_every_direction_in_it_borders_included(seed, n):
     poly = _random_hull(seed, n=n)
     kd = poly.kernel_data()
-    G, start = kd.idata[1], kd.idata[2]
+    G = kd.idata[1]
     assert G == max(kinds.CUBE_MAP_CELLS, int(np.ceil(np.sqrt(len(poly.vertices) / 3))))
-    offsets = kd.idata[start:start + 6 * G * G + 1]
-    counts = np.diff(offsets)
+    counts = np.diff(cell_candidates(poly.vertices, G)[0])
     assert counts.min() >= 1 and counts.mean() < 4  # short lists: not every vertex in every cell
     corners = cube_cell_corners(G)  # (cells, 4, 3)
     weights = np.random.default_rng(seed).dirichlet(np.full(4, 0.3), size=(len(corners), 8))
     edges = 0.5 * (corners + np.roll(corners, 1, axis=1))  # where a direction's cell is decided by rounding
     dirs = np.vstack([corners.reshape(-1, 3), edges.reshape(-1, 3), np.einsum("mkc,mcj->mkj", weights,
                                                                                 corners).reshape(-1, 3)])
+    s = support_many(kd.kind, kd.fdata, kd.idata, dirs)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, s), (dirs @ poly.vertices.T).max(axis=1), rtol=0,
+                               atol=1e-15)
+
+
+def test_cells_with_more_candidates_than_slots_keep_them_all():
+    """A 40-gon prism: the cells around its cap normals hold all 40 cap vertices (more than the
+    CELL_SLOTS of a cell), so their lists lie past the slots; supports there match brute force."""
+    angle = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
+    ring = np.column_stack([np.cos(angle), np.sin(angle), np.zeros(40)])
+    poly = spq.Polyhedron.from_points(np.vstack([ring + [0, 0, 0.3], ring - [0, 0, 0.3]]))
+    kd = poly.kernel_data()
+    G, start = kd.idata[1], kd.idata[2]
+    slots = kd.idata[start:start + CELL_SLOTS * 6 * G * G].reshape(-1, CELL_SLOTS)
+    assert (slots[:, 0] < 0).sum() >= 2 and slots[slots[:, 0] < 0, 1].max() >= 40
+    rng = np.random.default_rng(3)
+    dirs = np.vstack([[0, 0, 1], [0, 0, -1], rng.normal(size=(400, 3)) * [0.05, 0.05, 1.0]])
     s = support_many(kd.kind, kd.fdata, kd.idata, dirs)
     np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, s), (dirs @ poly.vertices.T).max(axis=1), rtol=0,
                                atol=1e-15)

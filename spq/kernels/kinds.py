@@ -3,11 +3,12 @@
 A shape reaches the kernels as ``(kind, margin, fdata, idata)``: a kind code, a margin (the radius of
 a ball added to the core, in metres), and two flat arrays whose layout the kind defines:
 
-- POLYTOPE: fdata = vertices (n*3, x y z interleaved); idata = [n, G, cells_start, cell offsets
-  (6*G*G + 1), candidates...]: the directions are binned into G x G cells on each of the six faces
-  of the direction cube, and cell c's support candidates (vertex ids, a superset of the supports of
-  all its directions) are idata[offsets[c]:offsets[c + 1]], offsets being positions in idata and
-  starting at idata[cells_start] (kernels/support.py).
+- POLYTOPE: fdata = vertices (n*3, x y z interleaved); idata = [n, G, cells_start, cell slots
+  (6*G*G cells of CELL_SLOTS), longer candidate lists...]: the directions are binned into G x G
+  cells on each of the six faces of the direction cube, and cell c's support candidates (vertex
+  ids, a superset of the supports of all its directions) fill its slots at
+  idata[cells_start + CELL_SLOTS * c], the last one repeated; a cell with more than CELL_SLOTS
+  holds (-1 - position of its list in idata, its length) instead (kernels/support.py).
 - BOX: fdata = half extents (hx, hy, hz); idata unused.
 - POINT: the origin (a Sphere is a POINT with its radius as margin); fdata, idata unused.
 - SEGMENT: fdata = (half_length,) along the local z axis (a Capsule is a SEGMENT with a margin).

@@ -9,7 +9,7 @@ from scipy.spatial import ConvexHull, QhullError
 from spq.io.mesh import load_mesh_vertices
 from spq.io.qhull import read_qhull_off
 from spq.kernels import kinds
-from spq.kernels.support import cell_candidates, cube_map_size
+from spq.kernels.support import cell_candidates, cube_map_idata, cube_map_size
 from spq.shapes.base import KernelData, Shape
 from spq.validation import as_points
 
@@ -115,10 +115,7 @@ class Polyhedron(Shape):
         if self._kernel is None:
             n = len(self.vertices)
             G = cube_map_size(n, kinds.CUBE_MAP_CELLS)
-            offsets, candidates = cell_candidates(self.vertices, G)
-            cells_start = 3
-            offsets += cells_start + len(offsets)  # positions in idata
-            idata = np.concatenate([[n, G, cells_start], offsets, candidates]).astype(kinds.IDATA_DTYPE)
+            idata = cube_map_idata(n, G, *cell_candidates(self.vertices, G)).astype(kinds.IDATA_DTYPE)
             self._kernel = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), idata)
         return self._kernel
 
