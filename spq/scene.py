@@ -286,8 +286,8 @@ class Scene:
 
         A body whose STP-BV's underlying hull is its own PCH (the same vertices, in the same order)
         stores that hull once: the STP-BV's data ends with its hull (spq.kernels.stp_support), so
-        its pool ranges run on into the PCH's. This halves the hulls' share of the working set,
-        which the all-pairs loop sweeps through in a random order."""
+        its pool ranges run on into the PCH's. For those bodies this halves the hulls' share of the
+        working set, which the all-pairs loop sweeps through in a random order."""
         slot_of, keys = {}, []
         for pair, sides in zip(self.pairs, self.pair_kinds):
             for bi, bv in zip(pair, sides):

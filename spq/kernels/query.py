@@ -683,7 +683,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     closest-point direction for the next warm start. centres: (6,) a point inside A (A's frame), then
     one inside B (B's frame): a cold start searches first along the line from A's to B's, which,
     for bodies whose frame origin lies far from their middle (a robot link's joint), saves about
-    one GJK iteration in ten. warm: int64 (WARM_SIZE,) warm-start state
+    7% of the GJK iterations (JVRC-1, cold: 2.47 -> 2.29 per pair). warm: int64 (WARM_SIZE,) warm-start state
     (in/out; zeros for a cold start). iwork: int64 (IWORK_SIZE,) scratch. work: (WORK_ROWS, 4)
     scratch. out: (OUT_SIZE,) result vector, in A's frame. Returns the status code.
 
