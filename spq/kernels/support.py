@@ -146,27 +146,24 @@ def cube_map_idata(n_vertices: int, G: int, offsets: np.ndarray, candidates: np.
 
 
 @kernel(inline="always")
-def polytope_support_index(f, ix, d0, d1, d2):
-    """Index of the vertex maximising d.x: the best of d's cube-map cell's candidates (layout in kinds)."""
-    c = ix[2] + CELL_SLOTS * cube_cell(d0, d1, d2, ix[1])
-    best = ix[c]
-    if best < 0:  # more candidates than slots: the cell's list lies further on
-        a = -1 - best
-        b = a + ix[c + 1]
-        best = ix[a]
-        best_val = _vertex_dot(f, best, d0, d1, d2)
-        for k in range(a + 1, b):
-            j = ix[k]
-            val = _vertex_dot(f, j, d0, d1, d2)
-            if val > best_val:
-                best_val = val
-                best = j
-        return best
+def _best_candidate(f, ix, a, b, d0, d1, d2):
+    """The first of the vertex ids ix[a:b] that maximises d.x."""
+    best = ix[a]
     best_val = _vertex_dot(f, best, d0, d1, d2)
-    for k in range(1, CELL_SLOTS):
-        j = ix[c + k]
+    for k in range(a + 1, b):
+        j = ix[k]
         val = _vertex_dot(f, j, d0, d1, d2)
         if val > best_val:
             best_val = val
             best = j
     return best
+
+
+@kernel(inline="always")
+def polytope_support_index(f, ix, d0, d1, d2):
+    """Index of the vertex maximising d.x: the best of d's cube-map cell's candidates (layout in kinds)."""
+    c = ix[2] + CELL_SLOTS * cube_cell(d0, d1, d2, ix[1])
+    first = ix[c]
+    if first < 0:  # more candidates than slots: the cell's list lies further on
+        return _best_candidate(f, ix, -1 - first, -1 - first + ix[c + 1], d0, d1, d2)
+    return _best_candidate(f, ix, c, c + CELL_SLOTS, d0, d1, d2)
