@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+import spq
 from datasets import load_object
 from spq.kernels import batch as kb
 from spq.kernels import gjk
@@ -81,3 +82,36 @@ def test_coherent_ball_finish_settles_a_smooth_motion_within_the_plain_descents_
     assert taken >= 0.8 * (separated - 1), (taken, separated)
     assert tori >= 10, tori
     assert moves >= 5, moves
+
+
+@pytest.mark.parametrize("stp_first", [True, False])
+def test_warm_queries_through_an_overlap_agree_with_the_plain_descent(stp_first):
+    # a body passing through the STP-BV and out again: while they overlap, a warm query restarts
+    # from the hulls' last simplex (no patch faces the other body), and once apart it finds the
+    # patches again; every step against the plain descent on the shapes' own supports
+    link4, link2 = load_object("kuka_link_4"), load_object("kuka_link_2")
+    stp = STPBV.from_points(link4.vertices, 0.005, 0.5)
+    n = 160
+    s = np.linspace(-1.0, 1.0, n)
+    moving = np.tile(np.eye(4), (n, 1, 1))
+    moving[:, :3, :3] = Rotation.from_rotvec(np.outer(0.6 * s, [0.3, 1.0, 0.2])).as_matrix()
+    moving[:, :3, 3] = np.outer(0.35 * s, [1.0, 0.4, -0.3]) + [0.0, 0.0, 0.05]
+    fixed = np.broadcast_to(np.eye(4), moving.shape)
+    a, b, pa, pb = (stp, link2, fixed, moving) if stp_first else (link2, stp, moving, fixed)
+    warm = spq.distances(a, b, pa, pb, tol=1e-12, rel_tol=1e-12, coherent=True)
+    overlapping = 0
+    fast = 0
+    for i in range(n):
+        st, upper, lower = plain_descent(a, b, pa[i], pb[i])
+        if st != gjk.OVERLAPPING and upper < 1e-9:
+            continue  # touching: either verdict is right
+        if st == gjk.OVERLAPPING:
+            assert warm.status[i] == "overlapping", (i, warm.status[i], upper)
+            overlapping += 1
+            fast += i > 0 and warm.status[i - 1] == "overlapping" and warm.iterations[i] <= 1
+        else:
+            assert warm.status[i] == "separated", (i, warm.status[i], upper)
+            assert lower - 1e-9 <= warm.distance[i] <= upper + 1e-9, i
+    # not vacuous: both verdicts occur, and an overlap that persists is confirmed from the last simplex
+    assert 20 <= overlapping <= n - 40, overlapping
+    assert fast >= 0.8 * overlapping, (fast, overlapping)

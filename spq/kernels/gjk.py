@@ -53,9 +53,11 @@ PROBE_ROW = DESCENT_ROWS + PATCH_ROWS  # first row of certify_overlap's scratch 
 WORK_ROWS = PROBE_ROW + DESCENT_ROWS + 2  # rows of the (WORK_ROWS, 4) scratch gjk_query takes
 
 # Warm-start state, an int64 array: the last support features of A and B, then the final simplex
-# of the previous query as (count, 4 feature ids of A, 4 of B), re-evaluated at the new poses.
-WARM_FEATURE_A, WARM_FEATURE_B, WARM_COUNT, WARM_SIMPLEX_A, WARM_SIMPLEX_B = 0, 1, 2, 3, 7
-WARM_SIZE = 11
+# of the previous query as (count, 4 feature ids of A, 4 of B), re-evaluated at the new poses; then
+# whether an STP-BV query last found the bodies overlapping (its simplex is then the hulls', see
+# query.gjk_query).
+WARM_FEATURE_A, WARM_FEATURE_B, WARM_COUNT, WARM_SIMPLEX_A, WARM_SIMPLEX_B, WARM_HULL_OVERLAP = 0, 1, 2, 3, 7, 11
+WARM_SIZE = 12
 IWORK_SIZE = 2 * WARM_SIZE  # int64 scratch of gjk_query: the STP search's simplex ids, then the probes' warm start
 
 
