@@ -112,9 +112,10 @@ def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel, max_iter, w
 
 
 @kernel
-def _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, m0, m1, m2):
+def _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, u0, u1, u2):
     """Centre (polytope's frame) of torus patch's ball facing the polytope feature of k vertex ids in
-    FI (a vertex, an edge, or a face whose normal is m, polytope to patch); c: the current centre."""
+    FI (a vertex, an edge, or a face, whose ball is the one along u, the STP side's frame, taken
+    as the face's normal towards it); c: the current centre."""
     if k == 1:
         v = int(FI[0, 0])
         q0, q1, q2 = _p_to_s(stp_a, R, t, fP[3 * v], fP[3 * v + 1], fP[3 * v + 2])
@@ -127,9 +128,51 @@ def _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, m0, m1
         g0, g1, g2, y0, y1, y2 = torus_against_segment(fS, iS, patch, s0, s1, s2, e0, e1, e2)
         x0, x1, x2 = y0 - g0, y1 - g1, y2 - g2
     else:
-        u0, u1, u2 = _rot_p_to_s(stp_a, R, -m0, -m1, -m2)
         x0, x1, x2, _ = ball_of_patch(fS, iS, patch, u0, u1, u2)
     return _s_to_p(stp_a, R, t, x0, x1, x2)
+
+
+@kernel(inline="always")
+def _same_feature(FI, k, a0, a1, a2, ka):
+    """Whether the simplex's k vertex ids in FI are the ka ids a0, a1, a2 (in any order)."""
+    if k != ka:
+        return False
+    for i in range(k):
+        v = FI[0, i]
+        if not (v == a0 or (ka > 1 and v == a1) or (ka > 2 and v == a2)):
+            return False
+    return True
+
+
+TORUS_ROUNDS = 4  # ball-facing-feature rounds on one torus before giving up to the general finish
+
+
+@kernel
+def _torus_centre_gjk(fS, iS, patch, stp_a, R, t, fP, iP, mP, c0, c1, c2, rad, k, s, u0, u1, u2, tol_abs, tol_rel,
+                      max_iter, work):
+    """_centre_gjk for torus patch, whose ball depends on the feature it faces: the ball facing
+    the simplex's feature (k ids in work's FI rows; along u, the STP side's frame, for a face), the
+    search from it, and again while the search ends on another feature. Returns _centre_gjk's
+    results, then the centre (polytope's frame); not ok if the feature has not settled within
+    TORUS_ROUNDS. Along a trajectory the feature is the last query's, and one search settles it."""
+    W = work[0:4]
+    FI = work[20:22]
+    it = 0
+    for r in range(TORUS_ROUNDS):
+        c0, c1, c2 = _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, u0, u1, u2)
+        _recentre(fP, c0, c1, c2, W, FI, k)
+        ka, a0, a1, a2 = k, FI[0, 0], FI[0, 1], FI[0, 2]
+        ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel,
+                                                       max_iter, work)
+        it += used
+        if not ok:
+            break
+        u0, u1, u2 = _rot_p_to_s(stp_a, R, v0 / core, v1 / core, v2 / core)
+        # a face's ball was taken along the last normal, not the face's own, unless a round on the
+        # face itself gave it
+        if _same_feature(FI, k, a0, a1, a2, ka) and (k < 3 or r > 0):
+            return True, k, v0, v1, v2, core, s, it, c0, c1, c2
+    return False, k, 0.0, 0.0, 0.0, 0.0, s, it, c0, c1, c2
 
 
 @kernel(inline="always")
@@ -179,24 +222,20 @@ def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel,
     it = 0
     o_planes = _offsets(iS)[2]
     n_spheres = iS[IDX_V] + iS[IDX_F]
+    u0, u1, u2 = n0, n1, n2  # the direction a torus's first ball is taken along, for a face (STP side's frame)
     for step in range(PATCH_STEPS + 1):
         if step == PATCH_STEPS:
             return -1
-        ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel,
-                                                       max_iter, work)
+        if patch >= n_spheres:
+            ok, k, v0, v1, v2, core, s, used, c0, c1, c2 = _torus_centre_gjk(fS, iS, patch, stp_a, R, t, fP, iP, mP,
+                                                                            c0, c1, c2, rad, k, s, u0, u1, u2,
+                                                                            tol_abs, tol_rel, max_iter, work)
+        else:
+            ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel,
+                                                           max_iter, work)
         it += used
         if not ok:
             return -1
-        if patch >= n_spheres:
-            # a torus: its ball facing the feature found, then the search again from that feature
-            c0, c1, c2 = _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, -v0 / core,
-                                            -v1 / core, -v2 / core)
-            _recentre(fP, c0, c1, c2, W, FI, k)
-            ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel,
-                                                           max_iter, work)
-            it += used
-            if not ok:
-                return -1
         # the patch must own the direction to the polytope, -m (STP side's frame); else its neighbour
         # across the boundary it violates is tried, from the feature found
         u0, u1, u2 = _rot_p_to_s(stp_a, R, v0 / core, v1 / core, v2 / core)
