@@ -192,13 +192,16 @@ def cmd_bench_robot(args) -> int:
              f"{args.configs} random configurations within the joint limits (seed {args.seed}) and a {args.steps}-step "
              "smooth trajectory. ")
     write_table(tables["scene"], out, "robot_scene", "Robot scene: all pairs per configuration", meta,
-                where + f"Best of {args.repeats} runs of one compiled call over all configurations, per configuration; "
-                "forward kinematics included; the results go into one array allocated beforehand, as a control loop "
+                where + f"Per configuration: {args.repeats} runs through all configurations in order, one compiled call "
+                f"per block of {rb.TIMING_BLOCK}; each block's fastest run counts (the sum over blocks, divided by the "
+                "number of configurations); forward kinematics included; the results go into one array allocated "
+                "beforehand, as a control loop "
                 "would keep. cold: every pair starts cold; coherent: per-pair warm starts along the "
                 f"trajectory. pruning_m > 0: pairs whose bounding spheres are farther apart are skipped.")
     write_table(tables["engines"], out, "robot_engines", "Robot scene: spq against coal and python-fcl", meta,
                 where + "Same PCH pairs at the same random configurations; the engines run one Python call per "
-                "pair, with the body poses computed beforehand (not timed). speedup_of_spq_auto: engine time / spq "
+                f"query, with the body poses computed beforehand (not timed); each pair's loop over the configurations "
+                f"is the fastest of {args.repeats}. speedup_of_spq_auto: engine time / spq "
                 "auto cold time. max_abs_diff_vs_spq_m and results_off_by_over_0.1mm: over the pair results spq calls "
                 "separated (coal agrees with spq to about 1e-8 m; python-fcl's GJK stops early on some, as in the "
                 "stability suite, and overestimates).")

@@ -68,3 +68,21 @@ def test_bench_robot_on_the_kuka_writes_its_tables_and_figures_and_agrees_with_c
     assert fk.configurations == 30 and fk.max_position_error_m <= 1e-9 and fk.max_rotation_entry_error <= 1e-9
     engines = pd.read_csv(tmp_path / "robot_engines.csv").set_index("engine")
     assert engines.loc["coal", "max_abs_diff_vs_spq_m"] <= 1e-7
+
+
+@pytest.mark.parametrize("coherent", [False, True])
+def test_blockwise_timing_gives_the_results_of_one_call(coherent):
+    """best_run times blocks of configurations in separate calls; the warm starts carry across the
+    blocks, so its results must be those of one call over all of them (the oracle), bit for bit."""
+    from harness.robot_poses import random_configurations, smooth_trajectory
+
+    config = rb.RobotBenchConfig(robot="kuka_iiwa")
+    scene = rb.load_scene(config, "auto")
+    qs = smooth_trajectory(scene.model, 37, 0) if coherent else random_configurations(scene.model, 37, 0)
+    scene.reset()
+    whole = scene.distances_many(qs, coherent=coherent).copy()
+    seconds, out = rb.best_run(scene, qs, coherent, None, repeats=2, block=5)
+    assert seconds > 0.0
+    np.testing.assert_array_equal(out, whole)
+    with pytest.raises(ValueError, match="repeats and block"):
+        rb.best_run(scene, qs, coherent, None, repeats=0)
