@@ -13,11 +13,19 @@ def shared_datasets_dir() -> Path | None:
     """Directory of the shared reference data, or None if it is missing.
 
     ``$SPQ_SHARED_DATASETS`` if set (it must then be an existing directory, else None), otherwise
-    ``<repo root>/../shared/datasets`` (the repository root is the parent of this package).
+    ``<repo root>/../shared/datasets`` (the repository root is the parent of this package), else
+    ``../shared/datasets`` from the working directory: after ``pip install .`` this package lives
+    in site-packages, and the README's commands run from the checkout, with ``shared`` beside it.
     """
     override = os.environ.get(ENV_SHARED)
-    path = Path(override).expanduser() if override else REPO_ROOT.parent / "shared" / "datasets"
-    return path.resolve() if path.is_dir() else None
+    if override:
+        candidates = [Path(override).expanduser()]
+    else:
+        candidates = [REPO_ROOT.parent / "shared" / "datasets", Path.cwd().parent / "shared" / "datasets"]
+    for path in candidates:
+        if path.is_dir():
+            return path.resolve()
+    return None
 
 
 def pybullet_data_dir() -> Path:

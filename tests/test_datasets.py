@@ -96,6 +96,20 @@ def test_shared_dir_override(monkeypatch, tmp_path):
         datasets.jvrc1_hull_names()
 
 
+def test_shared_dir_beside_the_working_directory_when_installed(monkeypatch, tmp_path):
+    """An installed package (not in a checkout) finds ../shared/datasets from the folder it runs in."""
+    import datasets.paths as paths
+
+    monkeypatch.delenv(ENV_SHARED, raising=False)
+    monkeypatch.setattr(paths, "REPO_ROOT", tmp_path / "venv" / "site-packages")
+    checkout = tmp_path / "work" / "main"
+    checkout.mkdir(parents=True)
+    monkeypatch.chdir(checkout)
+    assert shared_datasets_dir() is None
+    (tmp_path / "work" / "shared" / "datasets").mkdir(parents=True)
+    assert shared_datasets_dir() == (tmp_path / "work" / "shared" / "datasets").resolve()
+
+
 def test_sch_sample_polyhedron(shared_datasets):
     assert (shared_datasets / "sch-samples" / "sample_polyhedron.otp").is_file()
     poly = datasets.sch_sample_polyhedron()
