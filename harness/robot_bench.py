@@ -145,7 +145,6 @@ def engine_table(config: RobotBenchConfig, scene: Scene, qs: np.ndarray, spq_out
     """coal and fcl over every pair of the scene (their PCHs) at qs, one Python call per query, against
     spq's PCH results; spq_seconds: spq's cold time for the same configurations. Each pair's loop over
     qs is the fastest of config.repeats."""
-    repeats = config.repeats
     from tqdm import tqdm
 
     from harness.engines import available_engines
@@ -165,7 +164,7 @@ def engine_table(config: RobotBenchConfig, scene: Scene, qs: np.ndarray, spq_out
             pa = np.ascontiguousarray(poses[:, a])
             pb = np.ascontiguousarray(poses[:, b])
             prepared.distance_loop(pa[:2], pb[:2])
-            loop_seconds, distances[:, p] = best_time(lambda: prepared.distance_loop(pa, pb), repeats)
+            loop_seconds, distances[:, p] = best_time(lambda: prepared.distance_loop(pa, pb), config.repeats)
             seconds += loop_seconds
             prepared.close()
         diff = np.abs(distances - spq_out[:, :, OUT_DISTANCE])[separated]
