@@ -1,8 +1,16 @@
-"""distance(), distances() and Pair: the public face of the compiled GJK.
+"""distance(), distances() and Pair: the public face of the compiled GJK (and EPA).
 
 Frames and units: shapes live in their local frames; poses are 4x4 homogeneous matrices mapping
 local to world coordinates (batches N x 4 x 4); every returned point and normal is in the world
-frame, in metres. The normal is the unit vector from point_a to point_b.
+frame, in metres.
+
+Signed distance (``signed=True``): an overlapping pair gets distance = -depth, the depth being the
+length of the shortest translation of B that separates the bodies. For both signs, ``normal`` is
+the unit vector from A to B (for an overlap: the direction B must move to separate), point_a lies
+on A's surface and point_b on B's, and point_b - point_a = distance * normal. The bounds are
+certified: lower_bound <= true signed distance <= upper_bound, and ``distance`` is the upper bound.
+Without it (the default) an overlap gives distance 0, NaN witness points, and the bounds bound the
+unsigned distance.
 """
 
 from __future__ import annotations
@@ -14,6 +22,7 @@ import numpy as np
 from spq.kernels import batch as kb
 from spq.kernels.gjk import (
     OUT_DISTANCE,
+    OUT_UPPER,
     OUT_ITERATIONS,
     OUT_LOWER,
     OUT_NORMAL,
@@ -41,11 +50,12 @@ _POSE_PROBLEM = {
 class DistanceResult:
     """Result of one query (world frame, metres).
 
-    distance: >= 0, 0 when overlapping. point_a, point_b: witness points on A and B (NaN when
-    overlapping: penetration is not computed). normal: unit vector from point_a to point_b.
+    distance: >= 0, 0 when overlapping; with ``signed=True``, -depth when overlapping.
+    point_a, point_b: witness points on A and B (NaN when overlapping, unless signed).
+    normal: unit vector from A to B (for a signed overlap: the direction B must move).
     status: 'separated' | 'touching' (within tol of contact) | 'overlapping' | 'failed'.
-    iterations: GJK iterations. lower_bound: certified lower bound on the distance; the true
-    distance lies in [lower_bound, distance].
+    iterations: GJK (plus EPA) iterations. lower_bound, upper_bound: certified bounds on the
+    distance (the signed distance when signed); distance == upper_bound.
     """
 
     __slots__ = ("_out",)
@@ -60,17 +70,20 @@ class DistanceResult:
     status = property(lambda self: STATUS_NAMES[int(self._out[OUT_STATUS])])
     iterations = property(lambda self: int(self._out[OUT_ITERATIONS]))
     lower_bound = property(lambda self: float(self._out[OUT_LOWER]))
+    upper_bound = property(lambda self: float(self._out[OUT_UPPER]))
 
     def __repr__(self) -> str:
         return (f"DistanceResult(distance={self.distance:.12g}, status={self.status!r}, "
-                f"iterations={self.iterations}, lower_bound={self.lower_bound:.12g})")
+                f"iterations={self.iterations}, lower_bound={self.lower_bound:.12g}, "
+                f"upper_bound={self.upper_bound:.12g})")
 
 
 class BatchDistances:
     """Results of N queries as arrays (world frame, metres); fields as in DistanceResult.
 
     distance (N,), point_a (N, 3), point_b (N, 3), normal (N, 3), status (N,) str,
-    status_code (N,) int8 (index into spq.STATUS_NAMES), iterations (N,) int, lower_bound (N,).
+    status_code (N,) int8 (index into spq.STATUS_NAMES), iterations (N,) int, lower_bound (N,),
+    upper_bound (N,).
     """
 
     def __init__(self, out: np.ndarray):
@@ -82,6 +95,7 @@ class BatchDistances:
         self.status = _STATUS_ARRAY[self.status_code]
         self.iterations = out[:, OUT_ITERATIONS].astype(np.int64)
         self.lower_bound = out[:, OUT_LOWER].copy()
+        self.upper_bound = out[:, OUT_UPPER].copy()
 
     def __len__(self) -> int:
         return len(self.distance)
@@ -104,13 +118,19 @@ def _check_shape(shape, name: str) -> None:
         raise ValueError(f"{name} must be an spq shape (Polyhedron, Sphere, Box, Capsule, ...); got {type(shape).__name__}")
 
 
-def _pack(A: Shape, B: Shape, tol, rel_tol, max_iter) -> tuple[np.ndarray, np.ndarray]:
+def check_signed(signed) -> bool:
+    if not isinstance(signed, (bool, np.bool_)):
+        raise ValueError(f"signed must be True or False; got {signed!r}")
+    return bool(signed)
+
+
+def _pack(A: Shape, B: Shape, tol, rel_tol, max_iter, signed) -> tuple[np.ndarray, np.ndarray]:
     _check_shape(A, "A")
     _check_shape(B, "B")
     tol, rel_tol, max_iter = _check_tolerances(tol, rel_tol, max_iter)
     ka, kb_ = A.kernel_data(), B.kernel_data()
     ints = np.zeros(kb.INTS_SIZE, dtype=np.int64)
-    ints[[kb.I_KIND_A, kb.I_KIND_B, kb.I_MAX_ITER]] = ka.kind, kb_.kind, max_iter
+    ints[[kb.I_KIND_A, kb.I_KIND_B, kb.I_MAX_ITER, kb.I_SIGNED]] = ka.kind, kb_.kind, max_iter, check_signed(signed)
     floats = np.zeros(kb.FLOATS_SIZE)
     floats[[kb.F_MARGIN_A, kb.F_MARGIN_B, kb.F_TOL_ABS, kb.F_TOL_REL]] = ka.margin, kb_.margin, tol, rel_tol
     return ints, floats
@@ -152,19 +172,21 @@ class Pair:
     """A pair of shapes queried repeatedly, keeping the warm start between calls.
 
     The last support features and search direction of each call seed the next, so queries along a
-    smooth trajectory take few iterations. ``reset()`` forgets them.
+    smooth trajectory take few iterations. ``reset()`` forgets them. signed: overlaps get their
+    penetration depth as a negative distance (see the module docstring).
     """
 
     def __init__(self, A: Shape, B: Shape, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
-                 max_iter: int = DEFAULT_MAX_ITER):
+                 max_iter: int = DEFAULT_MAX_ITER, signed: bool = False):
         self.A, self.B = A, B
-        self._ints, self._floats = _pack(A, B, tol, rel_tol, max_iter)
+        self.signed = check_signed(signed)
+        self._ints, self._floats = _pack(A, B, tol, rel_tol, max_iter, signed)
         ka, kb_ = A.kernel_data(), B.kernel_data()
         self._fa, self._ia, self._fb, self._ib = ka.fdata, ka.idata, kb_.fdata, kb_.idata
 
     def reset(self) -> None:
         """Forget the warm start."""
-        self._ints[kb.I_WARM:] = 0
+        self._ints[kb.I_WARM:kb.I_SIGNED] = 0
         self._floats[kb.F_DIR:] = 0.0
 
     def distance(self, pose_a, pose_b) -> DistanceResult:
@@ -192,22 +214,24 @@ class Pair:
 
 
 def distance(A: Shape, pose_a, B: Shape, pose_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
-             max_iter: int = DEFAULT_MAX_ITER) -> DistanceResult:
+             max_iter: int = DEFAULT_MAX_ITER, signed: bool = False) -> DistanceResult:
     """Distance between convex shape A at pose_a and B at pose_b (4x4 world poses, metres).
 
-    GJK stops when the certified gap (distance - lower_bound) is at most tol + rel_tol * distance.
-    Overlapping shapes give distance 0 and status 'overlapping'. Raises ValueError for bad poses
-    or tolerances.
+    GJK stops when the certified gap (upper_bound - lower_bound) is at most tol + rel_tol * |distance|.
+    Overlapping shapes give distance 0 and status 'overlapping'; with signed=True, distance = -depth
+    from the expanding polytope (EPA), with witness points and bounds certified the same way (see
+    the module docstring). A query that cannot close its bounds within max_iter steps returns
+    status 'failed' with the bounds reached. Raises ValueError for bad poses or tolerances.
     """
-    return Pair(A, B, tol, rel_tol, max_iter).distance(pose_a, pose_b)
+    return Pair(A, B, tol, rel_tol, max_iter, signed).distance(pose_a, pose_b)
 
 
 def distances(A: Shape, B: Shape, poses_a, poses_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
-              max_iter: int = DEFAULT_MAX_ITER, coherent: bool = False) -> BatchDistances:
+              max_iter: int = DEFAULT_MAX_ITER, coherent: bool = False, signed: bool = False) -> BatchDistances:
     """Distances for N pose pairs in one compiled loop.
 
     poses_a, poses_b: (N, 4, 4) world poses (either may be a single 4x4, broadcast). coherent=True
     warm-starts each query from the previous one (for trajectories); False starts each cold.
-    Returns a :class:`BatchDistances` of arrays.
+    signed: as in :func:`distance`. Returns a :class:`BatchDistances` of arrays.
     """
-    return Pair(A, B, tol, rel_tol, max_iter).distances(poses_a, poses_b, coherent=coherent)
+    return Pair(A, B, tol, rel_tol, max_iter, signed).distances(poses_a, poses_b, coherent=coherent)

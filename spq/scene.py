@@ -37,10 +37,12 @@ from spq.kernels.gjk import (
     OUT_POINT_B,
     OUT_SIZE,
     OUT_STATUS,
+    OUT_UPPER,
     STATUS_NAMES,
 )
+from spq.kernels.batch import I_SIGNED
 from spq.kinematics import PRISMATIC, MeshGeometry, PrimitiveGeometry, RobotModel
-from spq.query import DEFAULT_MAX_ITER, DEFAULT_TOL_ABS, DEFAULT_TOL_REL, _check_tolerances
+from spq.query import DEFAULT_MAX_ITER, DEFAULT_TOL_ABS, DEFAULT_TOL_REL, _check_tolerances, check_signed
 from spq.shapes.polyhedron import Polyhedron
 from spq.shapes.stpbv import STPBV
 from spq.shapes.superellipsoid import Superellipsoid
@@ -105,9 +107,10 @@ class Body:
 class SceneDistances:
     """Every queried pair's result for one configuration (world frame, metres).
 
-    pairs: (npairs, 2) body indices; distance (npairs,) (inf for a pruned pair); point_a, point_b,
-    normal (npairs, 3); status (npairs,) str, one of STATUS_NAMES or 'pruned'; iterations;
-    lower_bound (the sphere gap for a pruned pair); pruned (npairs,) bool."""
+    pairs: (npairs, 2) body indices; distance (npairs,) (inf for a pruned pair; with signed=True
+    negative for an overlap, minus its penetration depth); point_a, point_b, normal (npairs, 3);
+    status (npairs,) str, one of STATUS_NAMES or 'pruned'; iterations; lower_bound (the sphere gap
+    for a pruned pair), upper_bound (== distance); pruned (npairs,) bool."""
 
     pairs: np.ndarray
     distance: np.ndarray
@@ -118,6 +121,7 @@ class SceneDistances:
     iterations: np.ndarray
     lower_bound: np.ndarray
     pruned: np.ndarray = field(default=None)
+    upper_bound: np.ndarray = field(default=None)
 
     @classmethod
     def from_out(cls, pairs: np.ndarray, out: np.ndarray) -> "SceneDistances":
@@ -127,7 +131,7 @@ class SceneDistances:
         return cls(pairs, out[:, OUT_DISTANCE].copy(), out[:, OUT_POINT_A:OUT_POINT_A + 3].copy(),
                    out[:, OUT_POINT_B:OUT_POINT_B + 3].copy(), out[:, OUT_NORMAL:OUT_NORMAL + 3].copy(),
                    names[np.where(pruned, len(STATUS_NAMES), code)], out[:, OUT_ITERATIONS].astype(np.int64),
-                   out[:, OUT_LOWER].copy(), pruned)
+                   out[:, OUT_LOWER].copy(), pruned, out[:, OUT_UPPER].copy())
 
     @property
     def min_index(self) -> int:
@@ -390,8 +394,10 @@ class Scene:
         """Joint values drawn uniformly within the limits (numpy Generator)."""
         return self.model.random_configuration(rng)
 
-    def _run(self, qs: np.ndarray, coherent: bool, prune: float, out: np.ndarray | None = None) -> np.ndarray:
+    def _run(self, qs: np.ndarray, coherent: bool, prune: float, out: np.ndarray | None = None,
+             signed: bool = False) -> np.ndarray:
         shape = (len(qs), len(self.pairs), OUT_SIZE)
+        self._pair_ints[:, I_SIGNED] = check_signed(signed)
         if out is None:
             out = np.empty(shape)
         elif (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float64
@@ -413,28 +419,30 @@ class Scene:
             raise ValueError(f"prune must be None or a finite distance >= 0 (m); got {prune}")
         return prune
 
-    def distances(self, q, coherent: bool = True, prune: float | None = None) -> SceneDistances:
+    def distances(self, q, coherent: bool = True, prune: float | None = None, signed: bool = False) -> SceneDistances:
         """Every queried pair's distance, witness points and status at joint configuration q.
 
         coherent: start each pair from its last simplex when its relative pose moved little (along a
         trajectory); False starts every pair cold. prune: skip pairs whose bounding spheres are more
-        than this far apart (m); None queries every pair. Raises ValueError for a q of the wrong
-        length, with NaN/inf, or outside the joint limits."""
+        than this far apart (m); None queries every pair. signed: overlapping pairs get minus their
+        penetration depth, with witness points and certified bounds (see spq.distance). Raises
+        ValueError for a q of the wrong length, with NaN/inf, or outside the joint limits."""
         q = self.model.check_configuration(q)
-        out = self._run(q[None], coherent, self._check_prune(prune))
+        out = self._run(q[None], coherent, self._check_prune(prune), signed=signed)
         return SceneDistances.from_out(self.pairs, out[0])
 
     def distances_many(self, qs, coherent: bool = False, prune: float | None = None,
-                       out: np.ndarray | None = None) -> np.ndarray:
+                       out: np.ndarray | None = None, signed: bool = False) -> np.ndarray:
         """Raw results (N, npairs, OUT_SIZE; columns as spq.kernels.gjk.OUT_*) for N configurations
-        (N, ndof) in one compiled call; coherent carries warm starts from one to the next.
+        (N, ndof) in one compiled call; coherent carries warm starts from one to the next; signed as
+        in :meth:`distances`.
 
         out: an array of that shape (float64, C-contiguous) to write the results into and return,
         so that a loop calling this again allocates nothing (a fresh array's first touch costs page
         faults, a few percent of a call over many configurations)."""
         qs = np.atleast_2d(np.asarray(qs, dtype=np.float64))
         checked = self.model.check_configurations(qs)
-        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune), out)
+        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune), out, signed)
 
     def link_poses(self, q) -> np.ndarray:
         """(nlinks, 4, 4) world poses of the links at q."""
@@ -448,12 +456,15 @@ class Scene:
     def distance_gradient(self, q, result: SceneDistances, index: int) -> np.ndarray:
         """Gradient (ndof,) of pair ``index``'s distance with respect to the joint values, at q.
 
-        d d / d q_j = n . (v_B - v_A), where n is the unit normal from A's witness point to B's and
-        v_X is the velocity of X's witness point (fixed to its body) under a unit rate of joint j.
-        Undefined (NaN) for an overlapping or pruned pair."""
+        d d / d q_j = n . (v_B - v_A), where n is the unit normal from A to B and v_X is the velocity
+        of X's witness point (fixed to its body) under a unit rate of joint j. The same holds for a
+        signed result's penetration depth (the envelope theorem on the support functions). Undefined
+        (NaN) for a failed or pruned pair, and for an overlap queried without signed=True."""
         q = self.model.check_configuration(q)
         grad = np.zeros(len(q))
-        if result.status[index] not in ("separated", "touching"):
+        defined = result.status[index] in ("separated", "touching", "overlapping")
+        if not defined or not (np.isfinite(result.normal[index]).all() and np.isfinite(result.point_a[index]).all()
+                               and np.isfinite(result.point_b[index]).all()):
             return grad * np.nan
         links = self.link_poses(q)
         n = result.normal[index]

@@ -1,6 +1,6 @@
 """Compiled entry points around gjk_query: pose checks, frames, single and batched queries.
 
-Packing: ``ints = [kind_a, kind_b, max_iter, warm state (gjk.WARM_SIZE)]`` and
+Packing: ``ints = [kind_a, kind_b, max_iter, warm state (gjk.WARM_SIZE), signed]`` and
 ``floats = [margin_a, margin_b, tol_abs, tol_rel, centre_a (3), centre_b (3), dx, dy, dz, R (9), t (3)]``
 (centre_a, centre_b: a point inside each core, in its own frame, that aims a cold start, zero for
 the frame origins; dx, dy, dz: the warm-start search direction in A's frame; R, t: B's pose in A's
@@ -14,7 +14,17 @@ import math
 import numpy as np
 from spq.kernels.jit import kernel
 
-from spq.kernels.gjk import IWORK_SIZE, OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, WARM_COUNT, WARM_SIZE, WORK_ROWS
+from spq.kernels.gjk import (
+    IWORK_SIZE,
+    OUT_DISTANCE,
+    OUT_NORMAL,
+    OUT_POINT_A,
+    OUT_POINT_B,
+    OUT_UPPER,
+    WARM_COUNT,
+    WARM_SIZE,
+    WORK_ROWS,
+)
 from spq.kernels.query import gjk_query
 
 POSE_OK = 0
@@ -24,7 +34,8 @@ POSE_NOT_ROTATION = 3
 ROTATION_TOL = 1e-6  # same admissible error as spq.validation.ROTATION_TOL
 
 I_KIND_A, I_KIND_B, I_MAX_ITER, I_WARM = 0, 1, 2, 3
-INTS_SIZE = I_WARM + WARM_SIZE
+I_SIGNED = I_WARM + WARM_SIZE  # 1: overlaps get their penetration depth (spq.kernels.signed)
+INTS_SIZE = I_SIGNED + 1
 F_MARGIN_A, F_MARGIN_B, F_TOL_ABS, F_TOL_REL, F_CENTRES, F_DIR, F_PREV_R, F_PREV_T = 0, 1, 2, 3, 4, 10, 13, 22
 FLOATS_SIZE = 25
 COHERENT_ROTATION = 0.2  # max |R - R_prev| entry for the previous simplex to be re-used
@@ -172,7 +183,9 @@ def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, R, t, work, iwor
     else:
         warm[:] = 0
         d[:] = 0.0
+    signed = ints[I_SIGNED] != 0
     gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
               floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, floats[F_CENTRES:F_CENTRES + 6], warm, iwork,
-              work, row)
+              work, row, signed)
+    row[OUT_UPPER] = row[OUT_DISTANCE]  # every path leaves its upper bound there
     _to_world(TA, row)

@@ -23,6 +23,7 @@ from spq.kernels.jit import kernel
 
 from spq.kernels.kinds import POINT, POLYTOPE
 from spq.kernels.dispatch import support_local
+from spq.kernels.epa_layout import EPA_FLOAT_ROWS, EPA_INT_SIZE
 
 SEPARATED = 0
 TOUCHING = 1
@@ -42,7 +43,8 @@ OUT_NORMAL = 7  # 7..9, unit, from A to B
 OUT_LOWER = 10
 OUT_ITERATIONS = 11
 OUT_STATUS = 12
-OUT_SIZE = 13
+OUT_UPPER = 13  # certified upper bound: the distance itself, or in a signed query the signed distance's
+OUT_SIZE = 14
 DESCENT_ROWS = 22  # rows 0-21 of the scratch array: the descent's (simplex, weights, support points, ids)
 # Rows of a descent's last support points s_A(-v), s_B(v) (A's frame), and the cell that is 1.0 when
 # they were taken along the final v: the supports along the final normal, which a certificate re-uses.
@@ -50,7 +52,9 @@ SUPPORT_ROW_A, SUPPORT_ROW_B = 13, 14
 FRESH_ROW, FRESH_COL = 15, 3
 PATCH_ROWS = 4  # rows after the descent's: the patch finish's scratch
 PROBE_ROW = DESCENT_ROWS + PATCH_ROWS  # first row of certify_overlap's scratch (a descent's, then 2 rows)
-WORK_ROWS = PROBE_ROW + DESCENT_ROWS + 2  # rows of the (WORK_ROWS, 4) scratch gjk_query takes
+PROBE_END = PROBE_ROW + DESCENT_ROWS + 2
+EPA_ROW = PROBE_END  # first row of a signed query's expanding polytope (spq.kernels.epa_layout)
+WORK_ROWS = EPA_ROW + EPA_FLOAT_ROWS  # rows of the (WORK_ROWS, 4) scratch gjk_query takes
 
 # Warm-start state, an int64 array: the last support features of A and B, then the final simplex
 # of the previous query as (count, 4 feature ids of A, 4 of B), re-evaluated at the new poses; then
@@ -58,7 +62,8 @@ WORK_ROWS = PROBE_ROW + DESCENT_ROWS + 2  # rows of the (WORK_ROWS, 4) scratch g
 # query.gjk_query).
 WARM_FEATURE_A, WARM_FEATURE_B, WARM_COUNT, WARM_SIMPLEX_A, WARM_SIMPLEX_B, WARM_HULL_OVERLAP = 0, 1, 2, 3, 7, 11
 WARM_SIZE = 12
-IWORK_SIZE = 2 * WARM_SIZE  # int64 scratch of gjk_query: the STP search's simplex ids, then the probes' warm start
+EPA_IOFF = 2 * WARM_SIZE  # int64 scratch of gjk_query: the STP search's simplex ids, the probes' warm start,
+IWORK_SIZE = EPA_IOFF + EPA_INT_SIZE  # then a signed query's polytope (spq.kernels.epa_layout)
 
 
 # ------------------------------------------------------------------------------------------

@@ -38,7 +38,8 @@ from spq.kernels.gjk import (
     WARM_HULL_OVERLAP,
     WARM_SIMPLEX_A,
     WARM_SIMPLEX_B,
-    IWORK_SIZE,
+    EPA_IOFF,
+    PROBE_END,
     PROBE_ROW,
     WARM_SIZE,
     WORK_ROWS,
@@ -52,6 +53,7 @@ from spq.kernels.gjk import (
 from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_pair
+from spq.kernels.signed import signed_finish, signed_from_hulls
 from spq.kernels.superellipsoid_support import FDATA_SIZE
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
@@ -71,6 +73,7 @@ from spq.kernels.stp_support import (
     ball_of_patch,
     find_march,
     find_patch,
+    hull_core,
     in_region,
     march_step,
     patch_support,
@@ -664,20 +667,9 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
     return settled
 
 
-@kernel
-def hull_core(k, m, f, ix):
-    """(kind, margin, fdata, idata) of the shape to search first: for an STP-BV its underlying
-    convex hull grown by r (a polytope, which the STP-BV contains and hugs within O(L^2 / rho));
-    any other shape unchanged."""
-    if k == STP and ix[IDX_H] > 0:
-        o_hull = _offsets(ix)[3]
-        return POLYTOPE, f[F_R], f[o_hull:o_hull + 3 * ix[IDX_H]], ix[ix[IDX_HULL]:ix.shape[0]]
-    return k, m, f[0:f.shape[0]], ix[0:ix.shape[0]]
-
-
 @kernel(inline="always")
 def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, centres, warm, iwork, work,
-              out):
+              out, signed):
     """Distance between core A (+ margin mA) and core B (+ margin mB), B at (R, t) in A's frame.
 
     dir_io: (3,) initial search direction (zero: a cold start), overwritten with the final
@@ -686,7 +678,9 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     for bodies whose frame origin lies far from their middle (a robot link's joint), saves about
     7% of the GJK iterations (JVRC-1, cold: 2.47 -> 2.29 per pair). warm: int64 (WARM_SIZE,) warm-start state
     (in/out; zeros for a cold start). iwork: int64 (IWORK_SIZE,) scratch. work: (WORK_ROWS, 4)
-    scratch. out: (OUT_SIZE,) result vector, in A's frame. Returns the status code.
+    scratch. out: (OUT_SIZE,) result vector, in A's frame. signed: an overlap gets its penetration
+    depth as a negative distance, with witness points and certified bounds (spq.kernels.signed);
+    otherwise distance 0 and NaN points. Returns the status code.
 
     With an STP-BV on either side: first the patches that faced each other in the last query (against
     a polytope by coherent_ball.coherent_ball_finish, else finish_on_patches); then a loose search on the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and
@@ -739,6 +733,12 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         gap = math.sqrt(vv) - ma - mb
         if status == OVERLAPPING or (status != FAILED and gap < -tol_abs):
             # the grown hulls overlap, and each STP-BV contains its grown hull
+            if signed:
+                for i in range(WARM_SIZE):
+                    warm[i] = scratch[i]
+                warm[WARM_HULL_OVERLAP] = 1
+                return signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k,
+                                         vv, extra, warm, work, iwork, out)
             _finish(OVERLAPPING, k, work[12], work[4:8], work[8:12], v0, v1, v2, vv, lower, it, ma, mb,
                     tol_abs, dir_io, out)
             for i in range(WARM_SIZE):
@@ -766,13 +766,20 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
             used = smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm,
                                  work, out)
             if used >= 0:
+                if signed and out[OUT_STATUS] == OVERLAPPING:
+                    # the inscribed polytopes overlap: the EPA on the bodies, from their simplex
+                    return signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
+                                         OVERLAPPING, 4, 0.0, 0.0, used, dir_io, warm, work, iwork, out)
                 return _done(out, used, dir_io)
             extra = -used - 1
     status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
                                                    dir_io, warm, work)
+    if signed:
+        return signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, lower,
+                             it + extra, dir_io, warm, work, iwork, out)
     if status == TOUCHING and tol_abs > 0.0:
         status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm,
-                                 work[PROBE_ROW:WORK_ROWS], iwork[WARM_SIZE:IWORK_SIZE])
+                                 work[PROBE_ROW:PROBE_END], iwork[WARM_SIZE:EPA_IOFF])
     _finish(status, k, work[12], work[4:8], work[8:12], v0, v1, v2, vv, lower, it + extra, mA, mB,
             tol_abs, dir_io, out)
     return int(out[OUT_STATUS])

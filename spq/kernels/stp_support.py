@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 from spq.kernels.jit import kernel
+from spq.kernels.kinds import POLYTOPE, STP
 from spq.kernels.support import polytope_support_index
 
 METHOD_NAIVE = 0
@@ -201,3 +202,14 @@ def stp_support(f, ix, method, d0, d1, d2, start, out):
     p, _ = find_patch(f, ix, method, start, u0, u1, u2)
     patch_support(f, ix, p, u0, u1, u2, out)
     return p
+
+
+@kernel
+def hull_core(k, m, f, ix):
+    """(kind, margin, fdata, idata) of the shape to search first: for an STP-BV its underlying
+    convex hull grown by r (a polytope, which the STP-BV contains and hugs within O(L^2 / rho));
+    any other shape unchanged."""
+    if k == STP and ix[IDX_H] > 0:
+        o_hull = _offsets(ix)[3]
+        return POLYTOPE, f[F_R], f[o_hull:o_hull + 3 * ix[IDX_H]], ix[ix[IDX_HULL]:ix.shape[0]]
+    return k, m, f[0:f.shape[0]], ix[0:ix.shape[0]]

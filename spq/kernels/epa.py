@@ -1,0 +1,772 @@
+"""Penetration depth: the expanding polytope algorithm (EPA) on the Minkowski difference D = A - B.
+
+The signed distance of two convex bodies is sd = -min over unit n of h_D(n), h_D(n) = h_A(n) +
+h_B(-n) the support function of D: the distance when the origin lies outside D, minus the depth
+(the length of the shortest translation of B that separates them) when it lies inside.
+
+The EPA keeps a convex polytope P of support points of D (so P lies inside D) and grows it towards
+D's boundary where that boundary is nearest the origin. Two bounds hold at every step:
+
+- upper: while the origin is inside P, depth >= the distance from the origin to P's boundary, the
+  least offset of P's faces, so sd <= -(least offset); before that, the GJK's own upper bound;
+- lower: every support point w along a unit n gives sd >= -n.w, since D lies below that plane.
+
+It stops when upper - lower <= tol_abs + tol_rel * |upper| (the certificate of the separated case),
+or when |sd| <= tol_abs is certified on both sides (touching). Each step expands the face of least
+offset, negative ones first (the origin on their outer side), so the same loop starts from any
+tetrahedron of support points, whether or not it holds the origin: from the GJK's simplex grown
+into a tetrahedron when the GJK ended with the origin on a point, segment or triangle of it.
+
+Faces are triangles in counter-clockwise order seen from outside, each knowing its three
+neighbours; a new support point replaces the faces it sees by a fan over the horizon, which a
+depth-first walk from the expanded face collects in order. A fan that would hold a sliver (a plane
+ill-defined in floating point), face inwards or break the horizon's loop is not made: the polytope
+stays as it was, the bounds reached stay valid, and the caller reports them with status FAILED if
+they do not meet the tolerance.
+
+Witness points: on the face of least offset, the barycentric coordinates of the origin's projection
+combine its corners' support points of A and of B, so that point_b - point_a = sd * normal and both
+points lie within the gap of their bodies' supporting planes.
+
+Everything runs in body A's frame, with B at (R, t) in it, like the GJK (spq.kernels.gjk). The
+polytope lives in the query's scratch (layout in spq.kernels.epa_layout), so nothing is allocated.
+"""
+
+from __future__ import annotations
+
+import math
+
+from spq.kernels.epa_layout import (
+    EPA_ADJ,
+    EPA_ALIVE,
+    EPA_CLOCK,
+    EPA_CORNERS,
+    EPA_DEAD,
+    EPA_FAN,
+    EPA_FEATURES,
+    EPA_FREE,
+    EPA_HORIZON,
+    EPA_MAX_FACES,
+    EPA_MAX_VERTICES,
+    EPA_NFREE,
+    EPA_PA,
+    EPA_PB,
+    EPA_PLANES,
+    EPA_STACK,
+    EPA_STAMP,
+    EPA_TMP,
+    EPA_W,
+)
+from spq.kernels.gjk import (
+    EPA_IOFF,
+    EPA_ROW,
+    FAILED,
+    OUT_DISTANCE,
+    OUT_ITERATIONS,
+    OUT_LOWER,
+    OUT_NORMAL,
+    OUT_POINT_A,
+    OUT_POINT_B,
+    OUT_STATUS,
+    OUT_UPPER,
+    OVERLAPPING,
+    TOUCHING,
+    minkowski_support,
+)
+from spq.kernels.jit import kernel
+
+SLIVER_SIN = 1e-7  # least sine of a face's largest angle: below, its plane is ill-defined in floating point
+VISIBLE_REL = 1e-13  # a face sees a point above its plane by more than this times the polytope's size
+FLAT_REL = 1e-13  # support points within this (relative) of a line or plane: D has no extent across it
+STALL_SLACK = 1e-9  # relative: a stalled expansion still counts as converged within this gap
+WALK_STEPS = 16  # steps across coplanar neighbours to the face holding the origin's projection
+
+# why the last run stopped, kept in the scratch (work[EPA_ROW + EPA_TMP, 3]) for diagnostics
+STOP_CLOSED, STOP_ITERATIONS, STOP_VERTICES, STOP_NO_PROGRESS = 1, 2, 3, 4
+STOP_HORIZON, STOP_FACE_SLOTS, STOP_FAN_SLIVER, STOP_FAN_INWARD = 5, 6, 7, 8  # expansions not made
+PLANE_OK, PLANE_SLIVER, PLANE_INWARD = 0, 1, 2
+
+# EPA outcomes
+EPA_INSIDE = 0  # the origin lies in P: out holds the result (status FAILED if the bounds did not close)
+EPA_OUTSIDE = 1  # the origin lies outside P (|sd| <= tol_abs certified, unless it stopped): the GJK's points stand
+EPA_FLAT = 2  # D has no interior (flat cores): sd >= 0; out's normal is one across the flat set (NaN: any)
+
+
+# ------------------------------------------------------------------------------------------
+# the polytope's storage
+# ------------------------------------------------------------------------------------------
+@kernel(inline="always")
+def _row(i):
+    return EPA_ROW + EPA_W + i
+
+
+@kernel(inline="always")
+def _corner(iw, f, k):
+    return iw[EPA_IOFF + EPA_CORNERS + 3 * f + k]
+
+
+@kernel(inline="always")
+def _adj(iw, f, k):
+    return iw[EPA_IOFF + EPA_ADJ + 3 * f + k]
+
+
+@kernel(inline="always")
+def _set_adj(iw, f, k, g):
+    iw[EPA_IOFF + EPA_ADJ + 3 * f + k] = g
+
+
+@kernel(inline="always")
+def _alive(iw, f):
+    return iw[EPA_IOFF + EPA_ALIVE + f] == 1
+
+
+@kernel(inline="always")
+def _set_alive(iw, f, alive):
+    iw[EPA_IOFF + EPA_ALIVE + f] = 1 if alive else 0
+
+
+@kernel(inline="always")
+def _stamp(iw, f):
+    return iw[EPA_IOFF + EPA_STAMP + f]
+
+
+@kernel(inline="always")
+def _set_stamp(iw, f, s):
+    iw[EPA_IOFF + EPA_STAMP + f] = s
+
+
+@kernel(inline="always")
+def _vertex(work, i, w, pa, pb):
+    """Store support point i: w = pa - pb, with its points of A and of B."""
+    for c in range(3):
+        work[EPA_ROW + EPA_W + i, c] = w[c]
+        work[EPA_ROW + EPA_PA + i, c] = pa[c]
+        work[EPA_ROW + EPA_PB + i, c] = pb[c]
+
+
+@kernel(inline="always")
+def _set_features(iw, i, fa, fb):
+    iw[EPA_IOFF + EPA_FEATURES + 2 * i] = fa
+    iw[EPA_IOFF + EPA_FEATURES + 2 * i + 1] = fb
+
+
+@kernel(inline="always")
+def feature(iw, i, side):
+    """The support feature of A (side 0) or of B (side 1) that vertex i came from."""
+    return iw[EPA_IOFF + EPA_FEATURES + 2 * i + side]
+
+
+@kernel(inline="always")
+def _swap_vertices(work, iw, i, j):
+    for base in (EPA_W, EPA_PA, EPA_PB):
+        for c in range(3):
+            x = work[EPA_ROW + base + i, c]
+            work[EPA_ROW + base + i, c] = work[EPA_ROW + base + j, c]
+            work[EPA_ROW + base + j, c] = x
+    fa, fb = feature(iw, i, 0), feature(iw, i, 1)
+    _set_features(iw, i, feature(iw, j, 0), feature(iw, j, 1))
+    _set_features(iw, j, fa, fb)
+
+
+@kernel
+def _support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work):
+    """Support point of D along d into the scratch rows (pa, pb, then w = pa - pb); returns h_D
+    along the unit vector of d."""
+    pa = work[EPA_ROW + EPA_TMP]
+    pb = work[EPA_ROW + EPA_TMP + 1]
+    w = work[EPA_ROW + EPA_TMP + 2]
+    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, w)
+    for c in range(3):
+        w[c] = pa[c] - pb[c]
+    return (d0 * w[0] + d1 * w[1] + d2 * w[2]) / math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@kernel(inline="always")
+def _keep_support(work, iw, warm, i):
+    """The support point in the scratch rows (its features in warm) as vertex i."""
+    _vertex(work, i, work[EPA_ROW + EPA_TMP + 2], work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1])
+    _set_features(iw, i, warm[0], warm[1])
+
+
+@kernel
+def _is_vertex(work, nv, w):
+    for i in range(nv):
+        r = _row(i)
+        if work[r, 0] == w[0] and work[r, 1] == w[1] and work[r, 2] == w[2]:
+            return True
+    return False
+
+
+@kernel
+def _size(work, nv):
+    """Largest coordinate of the first nv vertices: the scale of rounding errors."""
+    s = 0.0
+    for i in range(nv):
+        r = _row(i)
+        s = max(s, abs(work[r, 0]), abs(work[r, 1]), abs(work[r, 2]))
+    return s
+
+
+# ------------------------------------------------------------------------------------------
+# the initial tetrahedron
+# ------------------------------------------------------------------------------------------
+@kernel
+def _span(work, iw, nv):
+    """Reorder vertices 0..nv-1 so that the first m are affinely independent and span the others
+    (within FLAT_REL of the size); returns m. Greedy: the farthest from vertex 0, then from the line,
+    then from the plane."""
+    eps = FLAT_REL * _size(work, nv)
+    a = _row(0)
+    if nv < 2:
+        return nv
+    best, bi = 0.0, -1
+    for i in range(1, nv):
+        r = _row(i)
+        d = math.sqrt((work[r, 0] - work[a, 0]) ** 2 + (work[r, 1] - work[a, 1]) ** 2 + (work[r, 2] - work[a, 2]) ** 2)
+        if d > best:
+            best, bi = d, i
+    if not (best > eps):
+        return 1
+    _swap_vertices(work, iw, 1, bi)
+    if nv < 3:
+        return 2
+    best, bi = 0.0, -1
+    for i in range(2, nv):
+        d = _off_line(work, 0, 1, i)
+        if d > best:
+            best, bi = d, i
+    if not (best > eps):
+        return 2
+    _swap_vertices(work, iw, 2, bi)
+    if nv < 4:
+        return 3
+    best, bi = 0.0, -1
+    for i in range(3, nv):
+        d = abs(_off_plane(work, 0, 1, 2, _row(i)))
+        if d > best:
+            best, bi = d, i
+    if not (best > eps):
+        return 3
+    _swap_vertices(work, iw, 3, bi)
+    return 4
+
+
+@kernel
+def _off_line(work, i, j, k):
+    """Distance of vertex k from the line through vertices i and j."""
+    a, b, c = _row(i), _row(j), _row(k)
+    e0, e1, e2 = work[b, 0] - work[a, 0], work[b, 1] - work[a, 1], work[b, 2] - work[a, 2]
+    q0, q1, q2 = work[c, 0] - work[a, 0], work[c, 1] - work[a, 1], work[c, 2] - work[a, 2]
+    x0, x1, x2 = e1 * q2 - e2 * q1, e2 * q0 - e0 * q2, e0 * q1 - e1 * q0
+    return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) / math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
+@kernel
+def _off_plane(work, i, j, k, row):
+    """Signed distance of work[row] from the plane of vertices i, j, k (normal (j-i) x (k-i))."""
+    n0, n1, n2 = _plane_normal(work, i, j, k)
+    a = _row(i)
+    return (n0 * (work[row, 0] - work[a, 0]) + n1 * (work[row, 1] - work[a, 1]) + n2 * (work[row, 2] - work[a, 2]))
+
+
+@kernel
+def _plane_normal(work, i, j, k):
+    a, b, c = _row(i), _row(j), _row(k)
+    u0, u1, u2 = work[b, 0] - work[a, 0], work[b, 1] - work[a, 1], work[b, 2] - work[a, 2]
+    v0, v1, v2 = work[c, 0] - work[a, 0], work[c, 1] - work[a, 1], work[c, 2] - work[a, 2]
+    n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    return n0 / nn, n1 / nn, n2 / nn
+
+
+@kernel(inline="always")
+def _axis_direction(k):
+    """The k-th of the six axis directions +-x, +-y, +-z."""
+    s = 1.0 if k % 2 == 0 else -1.0
+    return (s if k // 2 == 0 else 0.0), (s if k // 2 == 1 else 0.0), (s if k // 2 == 2 else 0.0)
+
+
+@kernel
+def _grow(kA, fA, iA, kB, fB, iB, R, t, m, warm, work, iw):
+    """Add support points to the m (< 4) independent vertices until they are four: the one farthest
+    from vertex 0 of the six axis directions' supports, then of six directions around the segment,
+    then the farther of the two along the triangle's normals. Returns (m, lower): m < 4 when D
+    does not extend beyond the current line or plane (it is flat there), with lower the best bound
+    sd >= -h_D(n) met on the way."""
+    lower = -math.inf
+    size = _size(work, m)
+    tmp = EPA_ROW + EPA_TMP + 2
+    if m == 1:
+        best, bk = -1.0, 0
+        for k in range(6):
+            d0, d1, d2 = _axis_direction(k)
+            lower = max(lower, -_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work))
+            a = _row(0)
+            dist = math.sqrt((work[tmp, 0] - work[a, 0]) ** 2 + (work[tmp, 1] - work[a, 1]) ** 2
+                             + (work[tmp, 2] - work[a, 2]) ** 2)
+            size = max(size, abs(work[tmp, 0]), abs(work[tmp, 1]), abs(work[tmp, 2]))
+            if dist > best:
+                best, bk = dist, k
+        if not (best > FLAT_REL * size):
+            return 1, lower
+        d0, d1, d2 = _axis_direction(bk)
+        _support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work)
+        _keep_support(work, iw, warm, 1)
+        m = 2
+    if m == 2:
+        a, b = _row(0), _row(1)
+        e0, e1, e2 = work[b, 0] - work[a, 0], work[b, 1] - work[a, 1], work[b, 2] - work[a, 2]
+        en = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        e0, e1, e2 = e0 / en, e1 / en, e2 / en
+        if abs(e0) < 0.6:
+            x0, x1, x2 = 0.0, e2, -e1
+        else:
+            x0, x1, x2 = -e2, 0.0, e0
+        xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        x0, x1, x2 = x0 / xn, x1 / xn, x2 / xn
+        y0, y1, y2 = e1 * x2 - e2 * x1, e2 * x0 - e0 * x2, e0 * x1 - e1 * x0
+        best, bk = -1.0, 0
+        for k in range(6):  # six directions around the segment, 60 degrees apart
+            c, s = math.cos(k * math.pi / 3.0), math.sin(k * math.pi / 3.0)
+            lower = max(lower, -_support(kA, fA, iA, kB, fB, iB, R, t, c * x0 + s * y0, c * x1 + s * y1,
+                                         c * x2 + s * y2, warm, work))
+            _keep_support(work, iw, warm, 2)
+            size = max(size, abs(work[tmp, 0]), abs(work[tmp, 1]), abs(work[tmp, 2]))
+            dist = _off_line(work, 0, 1, 2)
+            if dist > best:
+                best, bk = dist, k
+        if not (best > FLAT_REL * size):
+            return 2, lower
+        c, s = math.cos(bk * math.pi / 3.0), math.sin(bk * math.pi / 3.0)
+        _support(kA, fA, iA, kB, fB, iB, R, t, c * x0 + s * y0, c * x1 + s * y1, c * x2 + s * y2, warm, work)
+        _keep_support(work, iw, warm, 2)
+        m = 3
+    if m == 3:
+        n0, n1, n2 = _plane_normal(work, 0, 1, 2)
+        hp = _support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+        above = _off_plane(work, 0, 1, 2, tmp)
+        size = max(size, abs(work[tmp, 0]), abs(work[tmp, 1]), abs(work[tmp, 2]))
+        hm = _support(kA, fA, iA, kB, fB, iB, R, t, -n0, -n1, -n2, warm, work)
+        below = -_off_plane(work, 0, 1, 2, tmp)
+        size = max(size, abs(work[tmp, 0]), abs(work[tmp, 1]), abs(work[tmp, 2]))
+        lower = max(lower, -hp, -hm)
+        if not (max(above, below) > FLAT_REL * size):
+            return 3, lower
+        if above > below:
+            _support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+        _keep_support(work, iw, warm, 3)
+        m = 4
+    return m, lower
+
+
+@kernel
+def _plane_of(work, a, b, c, c0, c1, c2):
+    """(PLANE_*, unit normal, offset) of the triangle of vertices a, b, c (counter-clockwise from
+    outside): PLANE_SLIVER if it is a sliver, PLANE_INWARD if it faces the interior point
+    c = (c0, c1, c2)."""
+    ra, rb, rc = _row(a), _row(b), _row(c)
+    u0, u1, u2 = work[rb, 0] - work[ra, 0], work[rb, 1] - work[ra, 1], work[rb, 2] - work[ra, 2]
+    v0, v1, v2 = work[rc, 0] - work[ra, 0], work[rc, 1] - work[ra, 1], work[rc, 2] - work[ra, 2]
+    n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    uu = u0 * u0 + u1 * u1 + u2 * u2
+    vv = v0 * v0 + v1 * v1 + v2 * v2
+    ww = (v0 - u0) ** 2 + (v1 - u1) ** 2 + (v2 - u2) ** 2
+    # |n| = (product of two sides) x (sine of their angle); the largest angle's sine bounds the
+    # normal's rounding error, about eps / sine
+    longest = max(uu * vv, uu * ww, vv * ww)
+    if not (nn * nn > SLIVER_SIN * SLIVER_SIN * longest):
+        return PLANE_SLIVER, 0.0, 0.0, 0.0, 0.0
+    n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
+    off = (n0 * (work[ra, 0] + work[rb, 0] + work[rc, 0]) + n1 * (work[ra, 1] + work[rb, 1] + work[rc, 1])
+           + n2 * (work[ra, 2] + work[rb, 2] + work[rc, 2])) / 3.0
+    if not (n0 * c0 + n1 * c1 + n2 * c2 < off):
+        return PLANE_INWARD, 0.0, 0.0, 0.0, 0.0
+    return PLANE_OK, n0, n1, n2, off
+
+
+@kernel
+def _new_face(work, iw, top, a, b, c, n0, n1, n2, off):
+    """A face slot (a free one if any, else slot ``top``) with corners a, b, c and its plane.
+    Returns (face, new top)."""
+    nfree = iw[EPA_IOFF + EPA_NFREE]
+    if nfree > 0:
+        f = iw[EPA_IOFF + EPA_FREE + nfree - 1]
+        iw[EPA_IOFF + EPA_NFREE] = nfree - 1
+    else:
+        f = top
+        top += 1
+    iw[EPA_IOFF + EPA_CORNERS + 3 * f] = a
+    iw[EPA_IOFF + EPA_CORNERS + 3 * f + 1] = b
+    iw[EPA_IOFF + EPA_CORNERS + 3 * f + 2] = c
+    _set_alive(iw, f, True)
+    _set_stamp(iw, f, 0)
+    row = EPA_ROW + EPA_PLANES + f
+    work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
+    return f, top
+
+
+@kernel
+def _tetrahedron(work, iw, c0, c1, c2):
+    """The four faces of the tetrahedron of vertices 0..3, outward, with their neighbours. Returns
+    (ok, number of face slots used); not ok if a face is a sliver."""
+    iw[EPA_IOFF + EPA_NFREE] = 0
+    iw[EPA_IOFF + EPA_CLOCK] = 0
+    top = 0
+    for m in range(4):  # the face opposite corner m
+        i = 1 if m == 0 else 0
+        j = 2 if m <= 1 else 1
+        k = 3 if m <= 2 else 2
+        code, n0, n1, n2, off = _plane_of(work, i, j, k, c0, c1, c2)
+        if code != PLANE_OK:
+            j, k = k, j
+            code, n0, n1, n2, off = _plane_of(work, i, j, k, c0, c1, c2)
+            if code != PLANE_OK:
+                return False, top
+        f, top = _new_face(work, iw, top, i, j, k, n0, n1, n2, off)
+    for f in range(4):  # neighbour across edge e: the face holding that edge reversed
+        for e in range(3):
+            a, b = _corner(iw, f, e), _corner(iw, f, (e + 1) % 3)
+            for g in range(4):
+                for h in range(3):
+                    if g != f and _corner(iw, g, h) == b and _corner(iw, g, (h + 1) % 3) == a:
+                        _set_adj(iw, f, e, g)
+    return True, top
+
+
+# ------------------------------------------------------------------------------------------
+# expansion
+# ------------------------------------------------------------------------------------------
+@kernel(inline="always")
+def _edge_towards(iw, g, f):
+    """The edge of face g across which face f lies."""
+    for h in range(3):
+        if _adj(iw, g, h) == f:
+            return h
+    return -1
+
+
+@kernel(inline="always")
+def _height(work, g, w):
+    row = EPA_ROW + EPA_PLANES + g
+    return work[row, 0] * w[0] + work[row, 1] * w[1] + work[row, 2] * w[2] - work[row, 3]
+
+
+@kernel
+def _horizon(work, iw, f0, w, stamp, eps):
+    """Mark dead the faces that see w (w above their plane by more than eps), walking from f0 (which
+    does), list them, and list the horizon: the edges between a dead face and a live one, in the
+    dead faces' counter-clockwise order. Returns (horizon edges, dead faces); the edge count is -1
+    if they do not form one closed loop."""
+    base = EPA_IOFF
+    nh = 0
+    nd = 1
+    sp = 0
+    _set_stamp(iw, f0, stamp)
+    _set_alive(iw, f0, False)
+    iw[base + EPA_DEAD] = f0
+    iw[base + EPA_STACK] = f0
+    iw[base + EPA_STACK + 1] = 0
+    iw[base + EPA_STACK + 2] = 3
+    while sp >= 0:
+        top = base + EPA_STACK + 3 * sp
+        if iw[top + 2] == 0:
+            sp -= 1
+            continue
+        f = iw[top]
+        e = iw[top + 1]
+        iw[top + 1] = (e + 1) % 3
+        iw[top + 2] -= 1
+        g = _adj(iw, f, e)
+        if _stamp(iw, g) == stamp and not _alive(iw, g):
+            continue  # both sides dead: an inner edge
+        if _stamp(iw, g) != stamp and _height(work, g, w) > eps:
+            _set_stamp(iw, g, stamp)
+            _set_alive(iw, g, False)
+            iw[base + EPA_DEAD + nd] = g
+            nd += 1
+            sp += 1
+            nxt = base + EPA_STACK + 3 * sp
+            iw[nxt] = g
+            iw[nxt + 1] = (_edge_towards(iw, g, f) + 1) % 3
+            iw[nxt + 2] = 2
+            continue
+        _set_stamp(iw, g, stamp)
+        h = base + EPA_HORIZON + 4 * nh
+        iw[h] = _corner(iw, f, e)
+        iw[h + 1] = _corner(iw, f, (e + 1) % 3)
+        iw[h + 2] = g
+        iw[h + 3] = _edge_towards(iw, g, f)
+        nh += 1
+    if nh < 3:
+        return -1, nd
+    for i in range(nh):
+        if iw[base + EPA_HORIZON + 4 * i + 1] != iw[base + EPA_HORIZON + 4 * ((i + 1) % nh)]:
+            return -1, nd
+    return nh, nd
+
+
+@kernel
+def _revive(iw, nd):
+    """Undo _horizon: the nd faces it marked dead live again."""
+    for i in range(nd):
+        _set_alive(iw, iw[EPA_IOFF + EPA_DEAD + i], True)
+
+
+@kernel
+def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
+    """Replace the faces that vertex wv sees (from face f0, which sees it) by a fan from the horizon
+    to wv. Returns (0, new top), or (STOP_*, top) with the polytope left as it was: a broken horizon,
+    no face slots left, or a fan face that would be a sliver or face inwards."""
+    w = work[_row(wv)]
+    nh, nd = _horizon(work, iw, f0, w, stamp, eps)
+    if nh < 0:
+        _revive(iw, nd)
+        return STOP_HORIZON, top
+    if iw[EPA_IOFF + EPA_NFREE] + nd + EPA_MAX_FACES - top < nh:
+        _revive(iw, nd)
+        return STOP_FACE_SLOTS, top
+    for i in range(nh):  # every fan face must have a well-defined outward plane
+        h = EPA_IOFF + EPA_HORIZON + 4 * i
+        code, n0, n1, n2, off = _plane_of(work, iw[h], iw[h + 1], wv, c0, c1, c2)
+        if code != PLANE_OK:
+            _revive(iw, nd)
+            return STOP_FAN_SLIVER if code == PLANE_SLIVER else STOP_FAN_INWARD, top
+        row = EPA_ROW + EPA_FAN + i
+        work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
+    for i in range(nd):  # the dead faces' slots become free
+        f = iw[EPA_IOFF + EPA_DEAD + i]
+        nfree = iw[EPA_IOFF + EPA_NFREE]
+        iw[EPA_IOFF + EPA_FREE + nfree] = f
+        iw[EPA_IOFF + EPA_NFREE] = nfree + 1
+        iw[EPA_IOFF + EPA_CORNERS + 3 * f] = -1
+    first = prev = -1
+    for i in range(nh):
+        h = EPA_IOFF + EPA_HORIZON + 4 * i
+        a, b, g, j = iw[h], iw[h + 1], iw[h + 2], iw[h + 3]
+        row = EPA_ROW + EPA_FAN + i
+        fn, top = _new_face(work, iw, top, a, b, wv, work[row, 0], work[row, 1], work[row, 2], work[row, 3])
+        _set_stamp(iw, fn, stamp)
+        _set_adj(iw, fn, 0, g)
+        _set_adj(iw, g, j, fn)
+        if prev >= 0:
+            _set_adj(iw, prev, 1, fn)
+            _set_adj(iw, fn, 2, prev)
+        else:
+            first = fn
+        prev = fn
+    _set_adj(iw, prev, 1, first)
+    _set_adj(iw, first, 2, prev)
+    return 0, top
+
+
+@kernel
+def _least_face(work, iw, top):
+    """The live face of least offset, and that offset."""
+    best, bf = math.inf, -1
+    for f in range(top):
+        if _alive(iw, f):
+            o = work[EPA_ROW + EPA_PLANES + f, 3]
+            if o < best:
+                best, bf = o, f
+    return bf, best
+
+
+# ------------------------------------------------------------------------------------------
+# witness points
+# ------------------------------------------------------------------------------------------
+@kernel(inline="always")
+def _signed_area(work, i, j, p0, p1, p2, n):
+    """Twice the area of triangle (w_i, w_j, p), signed along the normal in row n."""
+    u0, u1, u2 = work[i, 0] - p0, work[i, 1] - p1, work[i, 2] - p2
+    v0, v1, v2 = work[j, 0] - p0, work[j, 1] - p1, work[j, 2] - p2
+    return (u1 * v2 - u2 * v1) * work[n, 0] + (u2 * v0 - u0 * v2) * work[n, 1] + (u0 * v1 - u1 * v0) * work[n, 2]
+
+
+@kernel
+def _barycentric(work, iw, f, p0, p1, p2):
+    """Barycentric coordinates of point p (on face f's plane) in face f's triangle."""
+    a, b, c = _row(_corner(iw, f, 0)), _row(_corner(iw, f, 1)), _row(_corner(iw, f, 2))
+    n = EPA_ROW + EPA_PLANES + f
+    la = _signed_area(work, b, c, p0, p1, p2, n)
+    lb = _signed_area(work, c, a, p0, p1, p2, n)
+    lc = _signed_area(work, a, b, p0, p1, p2, n)
+    s = la + lb + lc
+    return la / s, lb / s, lc / s
+
+
+@kernel
+def _witness(work, iw, f, out):
+    """Witness points and normal from face f: the origin's projection onto its plane, located in f
+    or, where D is flat and split into coplanar triangles, in the neighbour reached across the edge
+    it lies beyond; its barycentric weights (clamped if the walk ends outside) combine the corners'
+    points of A and of B."""
+    row = EPA_ROW + EPA_PLANES + f
+    n0, n1, n2, off = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
+    la = lb = lc = 0.0
+    for _ in range(WALK_STEPS):
+        la, lb, lc = _barycentric(work, iw, f, off * n0, off * n1, off * n2)
+        worst = min(la, lb, lc)
+        if worst >= 0.0:
+            break
+        e = 1 if la == worst else (2 if lb == worst else 0)  # the edge opposite the negative corner
+        g = _adj(iw, f, e)
+        gr = EPA_ROW + EPA_PLANES + g
+        if work[gr, 0] * n0 + work[gr, 1] * n1 + work[gr, 2] * n2 < 1.0 - 1e-12:
+            break  # not coplanar: the projection is at f's edge
+        f = g
+    la, lb, lc = max(la, 0.0), max(lb, 0.0), max(lc, 0.0)
+    s = la + lb + lc
+    la, lb, lc = la / s, lb / s, lc / s
+    ia, ib, ic = _corner(iw, f, 0), _corner(iw, f, 1), _corner(iw, f, 2)
+    for c in range(3):
+        out[OUT_POINT_A + c] = (la * work[EPA_ROW + EPA_PA + ia, c] + lb * work[EPA_ROW + EPA_PA + ib, c]
+                                + lc * work[EPA_ROW + EPA_PA + ic, c])
+        out[OUT_POINT_B + c] = (la * work[EPA_ROW + EPA_PB + ia, c] + lb * work[EPA_ROW + EPA_PB + ib, c]
+                                + lc * work[EPA_ROW + EPA_PB + ic, c])
+    out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2
+
+
+# ------------------------------------------------------------------------------------------
+# the algorithm
+# ------------------------------------------------------------------------------------------
+@kernel(inline="always")
+def bounds_closed(upper, lower, tol_abs, tol_rel):
+    """The stopping rule: the bounds within tol_abs + tol_rel * |sd|, or |sd| <= tol_abs certified."""
+    return (upper < math.inf and upper - lower <= tol_abs + tol_rel * abs(upper)) or (upper <= tol_abs
+                                                                                       and lower >= -tol_abs)
+
+
+@kernel
+def epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw, out):
+    """The initial polytope: the k simplex points (rows of SW = SPA - SPB, their support features in
+    the columns of SFI), reduced to independent ones and grown into a tetrahedron.
+
+    Returns (nv, top, c0, c1, c2, lower): vertices, face slots used, a point strictly inside the
+    polytope (its centroid: the polytope only grows), and the bound sd >= lower met on the way.
+    nv < 4: D is flat (no tetrahedron), and out's normal is one across it (see _flat_normal)."""
+    nv = 0
+    for i in range(k):
+        if not _is_vertex(work, nv, SW[i]):
+            _vertex(work, nv, SW[i], SPA[i], SPB[i])
+            _set_features(iw, nv, int(SFI[0, i]), int(SFI[1, i]))
+            nv += 1
+    lower = -math.inf
+    nv = _span(work, iw, nv)
+    if nv < 4:
+        nv, lower = _grow(kA, fA, iA, kB, fB, iB, R, t, nv, warm, work, iw)
+        if nv < 4:
+            _flat_normal(work, nv, out)
+            return nv, 0, 0.0, 0.0, 0.0, lower
+    c0 = c1 = c2 = 0.0
+    for i in range(4):
+        c0 += 0.25 * work[_row(i), 0]
+        c1 += 0.25 * work[_row(i), 1]
+        c2 += 0.25 * work[_row(i), 2]
+    ok, top = _tetrahedron(work, iw, c0, c1, c2)
+    if not ok:
+        _flat_normal(work, 3, out)
+        return 3, 0, 0.0, 0.0, 0.0, lower
+    return nv, top, c0, c1, c2, lower
+
+
+@kernel
+def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c0, c1, c2, upper, lower, warm,
+            work, iw, out):
+    """Grow the polytope of epa_start (nv vertices, top face slots, interior point c) on the supports
+    of cores A and B until the bounds upper (sd <= upper) and lower close, from the given ones.
+
+    Returns (outcome, closed, upper, lower, iterations, nv, top). EPA_INSIDE: the result
+    (distance = upper, witness points, normal, bounds, status: FAILED if not closed) is in out,
+    A's frame, margins not included. EPA_OUTSIDE: out's normal is the outward normal of the face
+    the origin lies beyond; nothing else is written."""
+    size = _size(work, nv)
+    it = 0
+    closed = False
+    stop = STOP_CLOSED
+    f, off = _least_face(work, iw, top)
+    while True:
+        f, off = _least_face(work, iw, top)
+        if off >= 0.0:
+            upper = min(upper, -off)
+        if bounds_closed(upper, lower, tol_abs, tol_rel):
+            closed = True
+            break
+        if it >= max_iter or nv >= EPA_MAX_VERTICES:
+            stop = STOP_ITERATIONS if it >= max_iter else STOP_VERTICES
+            break
+        it += 1
+        row = EPA_ROW + EPA_PLANES + f
+        h = _support(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm, work)
+        lower = max(lower, -h)
+        if bounds_closed(upper, lower, tol_abs, tol_rel):
+            closed = True
+            break
+        w = work[EPA_ROW + EPA_TMP + 2]
+        size = max(size, abs(w[0]), abs(w[1]), abs(w[2]))
+        eps = VISIBLE_REL * size
+        if h - off <= eps or _is_vertex(work, nv, w):
+            # nothing of D beyond this face: the bounds are as good as this precision allows
+            closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
+            stop = STOP_NO_PROGRESS
+            break
+        _keep_support(work, iw, warm, nv)
+        iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
+        stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
+        if stop != 0:
+            break
+        nv += 1
+    work[EPA_ROW + EPA_TMP, 3] = STOP_CLOSED if closed else stop
+    if off < 0.0:
+        row = EPA_ROW + EPA_PLANES + f
+        out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = work[row, 0], work[row, 1], work[row, 2]
+        return EPA_OUTSIDE, closed, upper, lower, it, nv, top
+    _witness(work, iw, f, out)
+    out[OUT_DISTANCE] = upper
+    out[OUT_UPPER] = upper
+    out[OUT_LOWER] = lower
+    out[OUT_ITERATIONS] = it
+    out[OUT_STATUS] = (TOUCHING if upper >= -tol_abs else OVERLAPPING) if closed else FAILED
+    return EPA_INSIDE, closed, upper, lower, it, nv, top
+
+
+@kernel
+def epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, k, SW, SPA, SPB, SFI, upper0, lower0, warm,
+        work, iw, out):
+    """Signed distance of cores A and B (B at (R, t) in A's frame) from a GJK simplex of k support
+    points (rows of SW = SPA - SPB, their support features in the columns of SFI) that ended with
+    the origin in it or within tol_abs of it.
+
+    upper0: the GJK's upper bound on sd (0 if it proved overlap, else its distance); lower0: a known
+    lower bound (-inf if none). warm: int64 (2,) support features (in/out). work, iw: the query's
+    scratch. Returns (outcome, closed, upper, lower, iterations): closed when the bounds met the
+    tolerance. EPA_INSIDE and EPA_OUTSIDE: see epa_run. EPA_FLAT: D has no tetrahedron; out's
+    normal is one across it (NaN: any direction).
+    """
+    nv, top, c0, c1, c2, low = epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw, out)
+    lower = max(lower0, low)
+    if nv < 4:
+        return EPA_FLAT, False, upper0, lower, 0
+    outcome, closed, upper, lower, it, nv, top = epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv,
+                                                         top, c0, c1, c2, upper0, lower, warm, work, iw, out)
+    return outcome, closed, upper, lower, it
+
+
+@kernel
+def _flat_normal(work, m, out):
+    """Into out's normal: a unit vector across the flat set spanned by vertices 0..m-1 (the normal of
+    a triangle's plane, one orthogonal to a segment), or NaN for a point (any direction is)."""
+    if m >= 3:
+        n0, n1, n2 = _plane_normal(work, 0, 1, 2)
+    elif m == 2:
+        a, b = _row(0), _row(1)
+        e0, e1, e2 = work[b, 0] - work[a, 0], work[b, 1] - work[a, 1], work[b, 2] - work[a, 2]
+        if abs(e0) < 0.6 * math.sqrt(e0 * e0 + e1 * e1 + e2 * e2):
+            n0, n1, n2 = 0.0, e2, -e1
+        else:
+            n0, n1, n2 = -e2, 0.0, e0
+        nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
+    else:
+        n0 = n1 = n2 = math.nan
+    out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2

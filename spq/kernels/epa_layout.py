@@ -1,0 +1,39 @@
+"""Where the EPA keeps its polytope: rows of a query's float scratch and a run of its int scratch.
+
+The query kernels allocate nothing (spq.kernels.jit), so the expanding polytope of a signed query
+lives in the caller's scratch arrays, after the GJK's own rows: ``work`` rows from
+gjk.EPA_ROW and ``iwork`` entries from gjk.EPA_IOFF.
+
+Float rows (4 columns): the polytope's vertices w = a - b (x, y, z), their points of A and of B,
+then one plane per face slot (unit normal, offset), the planes of an expansion's new faces before
+they are made, then three rows of support scratch.
+Ints: the count of free face slots, the count of expansions, then per face its corners (3), its neighbours (3: across the
+edge from corner k to corner k + 1), an alive flag and a visit stamp; the free slots; the horizon
+of an expansion (4 per edge: from, to, outside face, that face's edge); the walk's stack (3 per
+entry: face, next edge, edges left); the faces an expansion removes; per vertex the support
+features of A and of B it came from (a polytope's vertex, an STP-BV's patch).
+"""
+
+EPA_MAX_VERTICES = 160  # support points: the initial tetrahedron, then one per EPA step (max_iter <= 128 by default)
+EPA_MAX_FACES = 2 * EPA_MAX_VERTICES  # a closed triangulated polytope has 2V - 4 faces
+
+# float rows
+EPA_W, EPA_PA, EPA_PB = 0, EPA_MAX_VERTICES, 2 * EPA_MAX_VERTICES
+EPA_PLANES = 3 * EPA_MAX_VERTICES
+EPA_FAN = EPA_PLANES + EPA_MAX_FACES
+EPA_TMP = EPA_FAN + EPA_MAX_FACES
+EPA_FLOAT_ROWS = EPA_TMP + 3
+
+# ints
+EPA_NFREE = 0
+EPA_CLOCK = 1  # expansions so far: each stamps the faces it visits with its own number
+EPA_CORNERS = 2
+EPA_ADJ = EPA_CORNERS + 3 * EPA_MAX_FACES
+EPA_ALIVE = EPA_ADJ + 3 * EPA_MAX_FACES
+EPA_STAMP = EPA_ALIVE + EPA_MAX_FACES
+EPA_FREE = EPA_STAMP + EPA_MAX_FACES
+EPA_HORIZON = EPA_FREE + EPA_MAX_FACES
+EPA_STACK = EPA_HORIZON + 4 * EPA_MAX_FACES
+EPA_DEAD = EPA_STACK + 3 * EPA_MAX_FACES
+EPA_FEATURES = EPA_DEAD + EPA_MAX_FACES
+EPA_INT_SIZE = EPA_FEATURES + 2 * EPA_MAX_VERTICES

@@ -1,0 +1,240 @@
+"""The end of a signed query: from the GJK's descent to a signed distance with certified bounds.
+
+Bodies are cores grown by margins (a sphere is a point grown by its radius), so the signed
+distance of the bodies is the cores' minus the margins: sd = sd_core - (mA + mB), with the same
+normal, the witness points moved out by the margins along it, and the bounds shifted alike.
+
+- Cores apart by more than tol_abs: the descent's result is exact; only the margins may make it
+  negative.
+- Cores overlapping, or within tol_abs of each other (the descent cannot tell which): the EPA
+  (spq.kernels.epa) from the descent's simplex. It either settles the overlap, or certifies that
+  |sd_core| <= tol_abs with the origin outside its polytope, where the descent's witness points
+  stand, or finds that the cores' difference is flat (two segments, a point and a segment, ...), so
+  that sd_core >= 0 and the descent's points stand, with a normal across the flat set if they meet.
+
+Results go to the query's out vector (A's frame) with distance = upper bound = the signed distance,
+lower bound below it, status by sd: 'separated' > tol_abs, 'touching' within, 'overlapping' below;
+'failed' with the bounds reached if the EPA did not close them.
+"""
+
+from __future__ import annotations
+
+import math
+
+from spq.kernels.epa import EPA_FLAT, EPA_INSIDE, bounds_closed, epa, epa_run, epa_start
+from spq.kernels.gjk import (
+    EPA_ROW,
+    FAILED,
+    OUT_DISTANCE,
+    OUT_ITERATIONS,
+    OUT_LOWER,
+    OUT_NORMAL,
+    OUT_POINT_A,
+    OUT_POINT_B,
+    OUT_STATUS,
+    OUT_UPPER,
+    OVERLAPPING,
+    SEPARATED,
+    TOUCHING,
+    minkowski_support,
+)
+from spq.kernels.epa_layout import EPA_TMP
+from spq.kernels.jit import kernel
+from spq.kernels.stp_support import hull_core
+
+# how signed_from_hulls ended, kept in the scratch (work[EPA_ROW + EPA_TMP + 1, 3]) for diagnostics
+HULL_SETTLED, HULL_CONTINUED, HULL_RESTARTED = 1, 2, 3
+
+
+@kernel(inline="always")
+def status_of(sd, tol_abs):
+    """'overlapping' below -tol_abs, 'touching' within it, 'separated' above."""
+    if sd < -tol_abs:
+        return OVERLAPPING
+    if sd <= tol_abs:
+        return TOUCHING
+    return SEPARATED
+
+
+@kernel
+def add_margins(mA, mB, tol_abs, out):
+    """The cores' signed result in out becomes the bodies': points moved out by the margins along the
+    normal, distance and bounds less mA + mB, status from the new distance (failed stays failed)."""
+    m = mA + mB
+    for c in range(3):
+        out[OUT_POINT_A + c] += mA * out[OUT_NORMAL + c]
+        out[OUT_POINT_B + c] -= mB * out[OUT_NORMAL + c]
+    out[OUT_DISTANCE] -= m
+    out[OUT_UPPER] -= m
+    out[OUT_LOWER] -= m
+    if out[OUT_STATUS] != FAILED:
+        out[OUT_STATUS] = status_of(out[OUT_DISTANCE], tol_abs)
+
+
+@kernel
+def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
+    """The descent's closest points (k simplex points, weights lam) as a signed core result: distance
+    |p_B - p_A| (its upper bound), lower bound ``lower``, normal along p_B - p_A, or n where they
+    coincide. status FAILED is kept; otherwise it follows the distance."""
+    for c in range(3):
+        sa = 0.0
+        sb = 0.0
+        for i in range(k):
+            sa += lam[i] * PA[i, c]
+            sb += lam[i] * PB[i, c]
+        out[OUT_POINT_A + c] = sa
+        out[OUT_POINT_B + c] = sb
+    dx = out[OUT_POINT_B] - out[OUT_POINT_A]
+    dy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
+    dz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d > 0.0:
+        out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = dx / d, dy / d, dz / d
+    else:
+        out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2
+    out[OUT_DISTANCE] = d
+    out[OUT_UPPER] = d
+    out[OUT_LOWER] = min(lower, d)
+    out[OUT_ITERATIONS] = it
+    out[OUT_STATUS] = FAILED if status == FAILED else status_of(d, tol_abs)
+
+
+@kernel
+def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, lower, it,
+                  dir_io, warm, work, iwork, out):
+    """Signed result (A's frame, margins included) from a descent between the cores that ended with
+    ``status`` (k simplex points and weights in work, |v|^2 = vv, lower bound ``lower`` on the
+    distance, it iterations). dir_io: a direction from A towards B, the normal of last resort."""
+    lam = work[12]
+    PA = work[4:8]
+    PB = work[8:12]
+    d0, d1, d2 = dir_io[0], dir_io[1], dir_io[2]
+    dn = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if dn > 0.0:
+        d0, d1, d2 = d0 / dn, d1 / dn, d2 / dn
+    else:
+        d0, d1, d2 = 1.0, 0.0, 0.0
+    if status == OVERLAPPING or status == TOUCHING:
+        upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
+        lower0 = lower if (status == TOUCHING and lower > 0.0) else -math.inf
+        outcome, closed, upper, low, eit = epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, k, work[0:4],
+                                               PA, PB, work[20:22], upper0, lower0, warm, work, iwork, out)
+        if outcome == EPA_INSIDE:
+            out[OUT_ITERATIONS] = it + eit
+        else:
+            # the origin is outside the polytope, or D is flat: the descent's points stand, with the
+            # EPA's normal where they coincide (a face the origin lies beyond, or across the flat set)
+            n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
+            if not (n0 == n0):
+                n0, n1, n2 = d0, d1, d2
+            elif outcome == EPA_FLAT and n0 * d0 + n1 * d1 + n2 * d2 < 0.0:
+                n0, n1, n2 = -n0, -n1, -n2
+            descent_result(TOUCHING, k, lam, PA, PB, low, it + eit, tol_abs, n0, n1, n2, out)
+            if outcome != EPA_FLAT and not closed:
+                out[OUT_STATUS] = FAILED
+    else:
+        descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
+    add_margins(mA, mB, tol_abs, out)
+    return int(out[OUT_STATUS])
+
+
+@kernel
+def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, it, warm,
+                      work, iwork, out):
+    """Signed result of two bodies of which one at least is an STP-BV, whose underlying hulls'
+    descent (k simplex points in work, |v|^2 = vv, ending with ``status``) found the hulls grown by
+    r overlapping.
+
+    First the EPA between the hulls, which converges in a few steps (polytopes); the STP-BV contains
+    its hull grown by r, so the hulls' depth plus the radii bounds the bodies' depth from below.
+    Where the facing patch is a small sphere (the commonest case), the STP-BV's support along the
+    hulls' normal is the grown hull's, and the body's own supports close the certificate at once.
+    Otherwise the EPA goes on from the hulls' polytope (its points lie inside the bodies) on the
+    bodies' own supports."""
+    ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
+    kb, mb, fb, ib = hull_core(kB, mB, fB, iB)
+    grow = (ma - mA) + (mb - mB)  # the radii r of the STP sides: the hulls' grown part
+    upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
+    nv, top, c0, c1, c2, low = epa_start(ka, fa, ia, kb, fb, ib, R, t, 4 if status == OVERLAPPING else k, work[0:4],
+                                         work[4:8], work[8:12], work[20:22], warm, work, iwork, out)
+    eit = 0
+    if nv == 4:
+        outcome, closed, upper, low, eit, nv, top = epa_run(ka, fa, ia, kb, fb, ib, R, t, tol_abs, tol_rel, max_iter,
+                                                            nv, top, c0, c1, c2, upper0, low, warm, work, iwork, out)
+        if outcome == EPA_INSIDE:
+            # the hulls' witness points, pushed out by the radii, and their normal
+            upper = upper - grow
+            n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
+            h = _core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            low = -h
+            if bounds_closed(upper, low, tol_abs, tol_rel):
+                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
+                for c in range(3):
+                    out[OUT_POINT_A + c] += (ma - mA) * out[OUT_NORMAL + c]
+                    out[OUT_POINT_B + c] -= (mb - mB) * out[OUT_NORMAL + c]
+                _set_result(upper, low, it + eit, tol_abs, out)
+                add_margins(mA, mB, tol_abs, out)
+                return int(out[OUT_STATUS])
+            # the EPA goes on with the bodies' supports, from the hulls' polytope (its own bound only:
+            # the result's witness points are its face's)
+            outcome, closed, upper, low, more, nv, top = epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel,
+                                                                 max_iter, nv, top, c0, c1, c2, math.inf, low, warm,
+                                                                 work, iwork, out)
+            eit += more
+            if outcome == EPA_INSIDE:
+                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CONTINUED
+                out[OUT_ITERATIONS] = it + eit
+                add_margins(mA, mB, tol_abs, out)
+                return int(out[OUT_STATUS])
+    # the hulls' polytope did not hold the origin: the EPA on the bodies from the descent's simplex
+    # (the bodies overlap by more than tol_abs: their grown hulls do)
+    outcome, closed, upper, low, more = epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
+                                            4 if status == OVERLAPPING else k, work[0:4], work[4:8], work[8:12],
+                                            work[20:22], math.inf, -math.inf, warm, work, iwork, out)
+    eit += more
+    work[EPA_ROW + EPA_TMP + 1, 3] = HULL_RESTARTED
+    if outcome != EPA_INSIDE:
+        # |sd| <= tol_abs with the origin outside the polytope (or no tetrahedron): the supports
+        # along the normal found, reported as failed unless the bounds closed
+        _set_result(upper, low, it + eit, tol_abs, out)
+        if not closed:
+            out[OUT_STATUS] = FAILED
+        _supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out)
+    out[OUT_ITERATIONS] = it + eit
+    add_margins(mA, mB, tol_abs, out)
+    return int(out[OUT_STATUS])
+
+
+@kernel
+def _core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
+    """h_D(n) of the cores along unit n (A's frame)."""
+    pa = work[16]
+    pb = work[17]
+    tmp = work[18]
+    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, pa, pb, tmp)
+    return n0 * (pa[0] - pb[0]) + n1 * (pa[1] - pb[1]) + n2 * (pa[2] - pb[2])
+
+
+@kernel
+def _set_result(upper, lower, iterations, tol_abs, out):
+    out[OUT_DISTANCE] = upper
+    out[OUT_UPPER] = upper
+    out[OUT_LOWER] = lower
+    out[OUT_ITERATIONS] = iterations
+    out[OUT_STATUS] = status_of(upper, tol_abs)
+
+
+@kernel
+def _supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out):
+    """Witness points: the bodies' supports along out's normal n (A's) and -n (B's)."""
+    n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
+    if not (n0 == n0):
+        n0, n1, n2 = 1.0, 0.0, 0.0
+        out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2
+    pa = work[16]
+    pb = work[17]
+    tmp = work[18]
+    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, pa, pb, tmp)
+    for c in range(3):
+        out[OUT_POINT_A + c] = pa[c]
+        out[OUT_POINT_B + c] = pb[c]
