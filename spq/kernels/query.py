@@ -35,25 +35,42 @@ from spq.kernels.gjk import (
     OUT_STATUS,
     WARM_COUNT,
     WARM_FEATURE_A,
+    WARM_FEATURE_B,
     WARM_HULL_OVERLAP,
     WARM_SIMPLEX_A,
     WARM_SIMPLEX_B,
     EPA_IOFF,
+    EPA_ROW,
     PROBE_END,
     PROBE_ROW,
     WARM_SIZE,
-    WORK_ROWS,
+    OUT_UPPER,
     OVERLAPPING,
     SEPARATED,
     TOUCHING,
     _finish,
     certify_overlap,
     descend,
+    minkowski_support,
 )
 from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_pair
-from spq.kernels.signed import signed_finish, signed_from_hulls
+from spq.kernels.epa import EPA_INSIDE, bounds_closed, epa, epa_run, epa_start
+from spq.kernels.epa_layout import EPA_TMP
+from spq.kernels.signed import (
+    HULL_CONTINUED,
+    HULL_PATCHES,
+    HULL_RESTARTED,
+    HULL_SETTLED,
+    add_margins,
+    descent_result,
+    signed_finish,
+    status_of,
+    supports_as_witnesses,
+    core_support,
+    set_result,
+)
 from spq.kernels.superellipsoid_support import FDATA_SIZE
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
@@ -64,7 +81,6 @@ from spq.kernels.stp_support import (
     IDX_E,
     IDX_F,
     IDX_H,
-    IDX_HULL,
     IDX_HULL_MAP,
     IDX_METHOD,
     IDX_V,
@@ -306,6 +322,83 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
 
 
 @kernel
+def _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, tol_rel, warm, pwork, iprobe, out):
+    """The certificate of an overlap along the unit normal m (A's frame, A to B), with an STP-BV on a
+    side: 1 if it closes (result in out, margins included), 0 if not (out untouched), -1 if it
+    cannot here.
+
+    lower: the bodies' supports along m bound sd >= -h_D(m). upper: an STP-BV is the ball hull of its
+    points at radius R - r grown by a ball of radius r, so for every direction the ball of radius r
+    touching its support plane from inside, centred at s(m) - r m, lies in it; the signed distance
+    of those balls (or of a ball and the other body's core, by an exact descent) bounds the bodies'
+    from above. At the optimal normal the two meet while the overlap is shallower than r: the small
+    balls then face the other body as the STP-BVs do (deeper, their centres pass into it: -1).
+    pwork: (DESCENT_ROWS + 2, 4) and iprobe: int64 (WARM_SIZE,) scratch."""
+    sa = pwork[DESCENT_ROWS]
+    sb = pwork[DESCENT_ROWS + 1]
+    for i in range(WARM_SIZE):
+        iprobe[i] = 0
+    iprobe[WARM_FEATURE_A], iprobe[WARM_FEATURE_B] = warm[WARM_FEATURE_A], warm[WARM_FEATURE_B]
+    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, m0, m1, m2, iprobe, sa, sb, pwork[16])
+    low = -(m0 * (sa[0] - sb[0]) + m1 * (sa[1] - sb[1]) + m2 * (sa[2] - sb[2]) + mA + mB)
+    ra = fA[F_R] if kA == STP else 0.0
+    rb = fB[F_R] if kB == STP else 0.0
+    # the small balls' centres (for a side that is no STP-BV, its core's support: unused)
+    a0, a1, a2 = sa[0] - ra * m0, sa[1] - ra * m1, sa[2] - ra * m2
+    b0, b1, b2 = sb[0] + rb * m0, sb[1] + rb * m1, sb[2] + rb * m2
+    ga, gb = ra + mA, rb + mB  # the radii around those centres (or cores)
+    if kA == STP and kB == STP:
+        g0, g1, g2 = b0 - a0, b1 - a1, b2 - a2
+        gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        if not (gn > 0.0) or g0 * m0 + g1 * m1 + g2 * m2 <= 0.0:
+            return -1
+        u0, u1, u2 = g0 / gn, g1 / gn, g2 / gn
+        upper = gn - ga - gb
+    else:
+        # a small ball's centre against the other body's core, exactly (the centre as the origin)
+        point_a = kA == STP
+        c0, c1, c2 = (a0, a1, a2) if point_a else (b0, b1, b2)
+        tq = pwork[DESCENT_ROWS + 1]
+        tq[0], tq[1], tq[2] = (t[0] - c0, t[1] - c1, t[2] - c2) if point_a else (c0, c1, c2)
+        dirv = pwork[DESCENT_ROWS]
+        dirv[0], dirv[1], dirv[2] = m0, m1, m2
+        status, k, v0, v1, v2, vv, lower, it = descend(POINT if point_a else kA, fA, iA, kB if point_a else POINT,
+                                                       fB, iB, R, tq, tol_abs, tol_rel, FINISH_DESCENT_ITER, dirv,
+                                                       iprobe, pwork)
+        if status != SEPARATED:
+            return -1  # the centre reaches the other core: the overlap is deeper than r
+        gn = math.sqrt(vv)
+        u0, u1, u2 = -v0 / gn, -v1 / gn, -v2 / gn
+        # the core side's point: the descent's convex combination (shifted back for B)
+        q0 = q1 = q2 = 0.0
+        for i in range(k):
+            row = 8 + i if point_a else 4 + i
+            q0 += pwork[12, i] * pwork[row, 0]
+            q1 += pwork[12, i] * pwork[row, 1]
+            q2 += pwork[12, i] * pwork[row, 2]
+        if point_a:
+            a0, a1, a2 = c0, c1, c2
+            b0, b1, b2 = q0 + c0, q1 + c1, q2 + c2
+        else:
+            a0, a1, a2 = q0, q1, q2
+            b0, b1, b2 = c0, c1, c2
+        upper = gn - ga - gb
+    if not (upper - low <= tol_abs + tol_rel * abs(upper)):
+        return 0
+    out[OUT_POINT_A], out[OUT_POINT_A + 1], out[OUT_POINT_A + 2] = a0 + ga * u0, a1 + ga * u1, a2 + ga * u2
+    out[OUT_POINT_B], out[OUT_POINT_B + 1], out[OUT_POINT_B + 2] = b0 - gb * u0, b1 - gb * u1, b2 - gb * u2
+    out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = u0, u1, u2
+    out[OUT_DISTANCE] = upper
+    out[OUT_UPPER] = upper
+    out[OUT_LOWER] = low
+    out[OUT_STATUS] = status_of(upper, tol_abs)
+    return 1
+
+
+FINISH_DESCENT_ITER = 64  # iterations of a small ball's centre against a polytope (it takes a few)
+
+
+@kernel
 def _closest_on_segment(s0, s1, s2, t0, t1, t2, x0, x1, x2):
     """The point of segment s-t nearest to x."""
     g0, g1, g2 = t0 - s0, t1 - s1, t2 - s2
@@ -318,7 +411,7 @@ def _closest_on_segment(s0, s1, s2, t0, t1, t2, x0, x1, x2):
 
 @kernel
 def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
-                      iscratch, fscratch, coherent, out):
+                      iscratch, fscratch, coherent, out, overlap, iprobe):
     """Try to settle the query on the balls of the STP patches facing along n (A's frame, A to B).
 
     Each round takes the facing patches (one guided-march step from the last ones), solves the
@@ -329,7 +422,12 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     round closed the gap. work: (WORK_ROWS, 4) scratch for the inner descent; iscratch: int64
     (WARM_SIZE,) and fscratch: (4, 3) scratch of this function's own. coherent: the first search
     starts from the patches in warm (the last query's); otherwise by a guided march from the small
-    spheres of the hull vertices in iscratch[0:2] (where the loose search on the hulls ended)."""
+    spheres of the hull vertices in iscratch[0:2] (where the loose search on the hulls ended).
+
+    overlap: the bodies overlap (a signed query). The balls are then solved the same way (their
+    centres lie outside the other body), but the certificate is _certify_overlap's, by the small
+    balls inside the STP-BVs; iprobe: int64 (WARM_SIZE,) scratch for it. Stops at once (-1) where
+    that certificate cannot hold (an overlap deeper than the small radius r)."""
     used = 0
     pa = pb = -1
     hint_a = warm[0] if coherent and kA == STP else _hull_hint(iA, iscratch[0]) if kA == STP else -1
@@ -378,7 +476,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             x0, x1, x2 = to_a(R, t, cb0, cb1, cb2)
             g0, g1, g2 = x0 - ca0, x1 - ca1, x2 - ca2
             gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-            if gn <= margin_a + margin_b + tol_abs:
+            if (gn <= margin_a + margin_b + tol_abs and not overlap) or not (gn > 0.0):
                 return -1
             m0, m1, m2 = g0 / gn, g1 / gn, g2 / gn
         else:
@@ -399,7 +497,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                                                            max_iter, dirv, iscratch, work)
             copy_point_simplex(iscratch, warm, point_side)
             used += it
-            if status != SEPARATED or math.sqrt(vv) <= margin_a2 + margin_b2 + tol_abs:
+            if status != SEPARATED or (math.sqrt(vv) <= margin_a2 + margin_b2 + tol_abs and not overlap):
                 return -1
             m0, m1, m2 = -v0 / math.sqrt(vv), -v1 / math.sqrt(vv), -v2 / math.sqrt(vv)
             # the polytope side's witness: the descent's convex combination, back in A's frame
@@ -419,8 +517,13 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                     known = KNOWN_A
                     for c in range(3):
                         fscratch[0, c] = work[SUPPORT_ROW_A, c] + mA * (m0, m1, m2)[c]
-        if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known,
-                    out):
+        if overlap:
+            verdict = _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, tol_rel, warm,
+                                       work[PROBE_ROW:PROBE_END], iprobe, out)
+            if verdict != 0:
+                return used if verdict > 0 else -1
+        elif _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+                      known, out):
             return used
         # the next direction, in the STP side's frame: its patch's ball against the other side's witness
         if kA == STP:
@@ -474,8 +577,13 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 w0, w1, w2 = to_a(R, t, y0, y1, y2)
                 for c in range(3):
                     out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (n0, n1, n2)[c]
-            if _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch, 0,
-                        out):
+            if overlap:
+                verdict = _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, warm,
+                                           work[PROBE_ROW:PROBE_END], iprobe, out)
+                if verdict != 0:
+                    return used if verdict > 0 else -1
+            elif _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch, 0,
+                          out):
                 return used
     return -1
 
@@ -712,7 +820,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         if n > 0.0 and not overlapped:
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
                                      dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, work, scratch, fscratch, True,
-                                     out)
+                                     out, False, scratch)
             if used >= 0:
                 return _done(out, used, dir_io)
         ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
@@ -755,7 +863,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
                 return _done(out, extra, dir_io)
             n = math.sqrt(vv)
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -v0 / n, -v1 / n, -v2 / n, tol_abs,
-                                     tol_rel, max_iter, warm, work, scratch, fscratch, False, out)
+                                     tol_rel, max_iter, warm, work, scratch, fscratch, False, out, False, scratch)
             if used >= 0:
                 return _done(out, used + extra, dir_io)
             dir_io[0], dir_io[1], dir_io[2] = -v0, -v1, -v2
@@ -833,3 +941,133 @@ def _done(out, iterations, dir_io):
     for c in range(3):
         dir_io[c] = out[OUT_NORMAL + c]
     return int(out[OUT_STATUS])
+
+
+@kernel
+def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, it, warm,
+                      work, iwork, out):
+    """Signed result of two bodies of which one at least is an STP-BV, whose underlying hulls'
+    descent (k simplex points in work, |v|^2 = vv, ending with ``status``) found the hulls grown by
+    r overlapping.
+
+    First the EPA between the hulls, which converges in a few steps (polytopes); the STP-BV contains
+    its hull grown by r, so the hulls' depth plus the radii bounds the bodies' depth from below.
+    Where the facing patch is a small sphere (the commonest case), the STP-BV's support along the
+    hulls' normal is the grown hull's, and the body's own supports close the certificate at once.
+    Otherwise the patches facing along the hulls' normal settle it (finish_on_patches, with the
+    small-ball certificate of _certify_overlap) while the overlap is shallower than r; else the EPA
+    goes on from the hulls' polytope (its points lie inside the bodies) on the bodies' own supports."""
+    ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
+    kb, mb, fb, ib = hull_core(kB, mB, fB, iB)
+    grow = (ma - mA) + (mb - mB)  # the radii r of the STP sides: the hulls' grown part
+    eit = 0
+    if status != OVERLAPPING:
+        # the hulls apart by less than the radii: their distance d to full tolerance first (from the
+        # loose search's simplex in warm). The bodies contain the hulls grown by the radii, which
+        # hold the ball of radius grow - d about the origin, so sd <= d - grow; where a small
+        # sphere faces, the bodies' supports along the hulls' normal give sd >= d - grow too.
+        lam = work[12]
+        dirv = work[EPA_ROW + EPA_TMP]
+        for c in range(3):
+            x = 0.0
+            for i in range(k):
+                x -= lam[i] * work[i, c]
+            dirv[c] = x
+        status, k, v0, v1, v2, vv, lower, more = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs, tol_rel, max_iter,
+                                                         dirv, warm, work)
+        eit += more
+        if status == SEPARATED:
+            d = math.sqrt(vv)
+            n0, n1, n2 = -v0 / d, -v1 / d, -v2 / d
+            upper = d - grow
+            low = -core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            if bounds_closed(upper, low, tol_abs, tol_rel):
+                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
+                descent_result(SEPARATED, k, work[12], work[4:8], work[8:12], lower, it + eit, tol_abs, n0, n1, n2,
+                               out)
+                for c in range(3):
+                    out[OUT_POINT_A + c] += (ma - mA) * (n0, n1, n2)[c]
+                    out[OUT_POINT_B + c] -= (mb - mB) * (n0, n1, n2)[c]
+                set_result(upper, low, it + eit, tol_abs, out)
+                add_margins(mA, mB, tol_abs, out)
+                return int(out[OUT_STATUS])
+            used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter,
+                                     warm, work, iwork[0:WARM_SIZE], work[DESCENT_ROWS:PROBE_ROW], False, out, True,
+                                     iwork[WARM_SIZE:EPA_IOFF])
+            if used >= 0:
+                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_PATCHES
+                out[OUT_ITERATIONS] = it + eit + used
+                return int(out[OUT_STATUS])
+            # the EPA on the bodies, from their support along the hulls' normal
+            k = _support_simplex(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+    upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
+    nv = 0
+    if status != SEPARATED and status != FAILED:
+        nv, top, c0, c1, c2, low = epa_start(ka, fa, ia, kb, fb, ib, R, t, 4 if status == OVERLAPPING else k,
+                                             work[0:4], work[4:8], work[8:12], work[20:22], warm, work, iwork, out)
+    if nv == 4:
+        outcome, closed, upper, low, more, nv, top = epa_run(ka, fa, ia, kb, fb, ib, R, t, tol_abs, tol_rel,
+                                                             max_iter, nv, top, c0, c1, c2, upper0, low, warm, work,
+                                                             iwork, out)
+        eit += more
+        if outcome == EPA_INSIDE:
+            # the hulls' witness points, pushed out by the radii, and their normal
+            upper = upper - grow
+            n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
+            h = core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            low = -h
+            if bounds_closed(upper, low, tol_abs, tol_rel):
+                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
+                for c in range(3):
+                    out[OUT_POINT_A + c] += (ma - mA) * out[OUT_NORMAL + c]
+                    out[OUT_POINT_B + c] -= (mb - mB) * out[OUT_NORMAL + c]
+                set_result(upper, low, it + eit, tol_abs, out)
+                add_margins(mA, mB, tol_abs, out)
+                return int(out[OUT_STATUS])
+            used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter,
+                                     warm, work, iwork[0:WARM_SIZE], work[DESCENT_ROWS:PROBE_ROW], False, out, True,
+                                     iwork[WARM_SIZE:EPA_IOFF])
+            if used >= 0:
+                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_PATCHES
+                out[OUT_ITERATIONS] = it + eit + used
+                return int(out[OUT_STATUS])
+            # the EPA goes on with the bodies' supports, from the hulls' polytope (its own bound only:
+            # the result's witness points are its face's)
+            outcome, closed, upper, low, more, nv, top = epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel,
+                                                                 max_iter, nv, top, c0, c1, c2, math.inf, low, warm,
+                                                                 work, iwork, out)
+            eit += more
+            if outcome == EPA_INSIDE:
+                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CONTINUED
+                out[OUT_ITERATIONS] = it + eit
+                add_margins(mA, mB, tol_abs, out)
+                return int(out[OUT_STATUS])
+    # the hulls' polytope did not hold the origin: the EPA on the bodies from the descent's simplex
+    # (the bodies overlap by more than tol_abs: their grown hulls do)
+    outcome, closed, upper, low, more = epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
+                                            4 if status == OVERLAPPING else k, work[0:4], work[4:8], work[8:12],
+                                            work[20:22], math.inf, -math.inf, warm, work, iwork, out)
+    eit += more
+    work[EPA_ROW + EPA_TMP + 1, 3] = HULL_RESTARTED
+    if outcome != EPA_INSIDE:
+        # |sd| <= tol_abs with the origin outside the polytope (or no tetrahedron): the supports
+        # along the normal found, reported as failed unless the bounds closed
+        set_result(upper, low, it + eit, tol_abs, out)
+        if not closed:
+            out[OUT_STATUS] = FAILED
+        supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out)
+    out[OUT_ITERATIONS] = it + eit
+    add_margins(mA, mB, tol_abs, out)
+    return int(out[OUT_STATUS])
+
+
+@kernel
+def _support_simplex(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
+    """A one-point simplex for the EPA in the descent's rows: the bodies' support along n. Returns 1."""
+    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work[4], work[8], work[16])
+    for c in range(3):
+        work[0, c] = work[4, c] - work[8, c]
+    work[20, 0] = warm[WARM_FEATURE_A]
+    work[21, 0] = warm[WARM_FEATURE_B]
+    work[12, 0] = 1.0
+    return 1

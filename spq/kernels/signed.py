@@ -21,9 +21,8 @@ from __future__ import annotations
 
 import math
 
-from spq.kernels.epa import EPA_FLAT, EPA_INSIDE, bounds_closed, epa, epa_run, epa_start
+from spq.kernels.epa import EPA_FLAT, EPA_INSIDE, epa
 from spq.kernels.gjk import (
-    EPA_ROW,
     FAILED,
     OUT_DISTANCE,
     OUT_ITERATIONS,
@@ -38,12 +37,10 @@ from spq.kernels.gjk import (
     TOUCHING,
     minkowski_support,
 )
-from spq.kernels.epa_layout import EPA_TMP
 from spq.kernels.jit import kernel
-from spq.kernels.stp_support import hull_core
 
 # how signed_from_hulls ended, kept in the scratch (work[EPA_ROW + EPA_TMP + 1, 3]) for diagnostics
-HULL_SETTLED, HULL_CONTINUED, HULL_RESTARTED = 1, 2, 3
+HULL_SETTLED, HULL_CONTINUED, HULL_RESTARTED, HULL_PATCHES = 1, 2, 3, 4
 
 
 @kernel(inline="always")
@@ -139,74 +136,7 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
 
 
 @kernel
-def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, it, warm,
-                      work, iwork, out):
-    """Signed result of two bodies of which one at least is an STP-BV, whose underlying hulls'
-    descent (k simplex points in work, |v|^2 = vv, ending with ``status``) found the hulls grown by
-    r overlapping.
-
-    First the EPA between the hulls, which converges in a few steps (polytopes); the STP-BV contains
-    its hull grown by r, so the hulls' depth plus the radii bounds the bodies' depth from below.
-    Where the facing patch is a small sphere (the commonest case), the STP-BV's support along the
-    hulls' normal is the grown hull's, and the body's own supports close the certificate at once.
-    Otherwise the EPA goes on from the hulls' polytope (its points lie inside the bodies) on the
-    bodies' own supports."""
-    ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
-    kb, mb, fb, ib = hull_core(kB, mB, fB, iB)
-    grow = (ma - mA) + (mb - mB)  # the radii r of the STP sides: the hulls' grown part
-    upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
-    nv, top, c0, c1, c2, low = epa_start(ka, fa, ia, kb, fb, ib, R, t, 4 if status == OVERLAPPING else k, work[0:4],
-                                         work[4:8], work[8:12], work[20:22], warm, work, iwork, out)
-    eit = 0
-    if nv == 4:
-        outcome, closed, upper, low, eit, nv, top = epa_run(ka, fa, ia, kb, fb, ib, R, t, tol_abs, tol_rel, max_iter,
-                                                            nv, top, c0, c1, c2, upper0, low, warm, work, iwork, out)
-        if outcome == EPA_INSIDE:
-            # the hulls' witness points, pushed out by the radii, and their normal
-            upper = upper - grow
-            n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
-            h = _core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
-            low = -h
-            if bounds_closed(upper, low, tol_abs, tol_rel):
-                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
-                for c in range(3):
-                    out[OUT_POINT_A + c] += (ma - mA) * out[OUT_NORMAL + c]
-                    out[OUT_POINT_B + c] -= (mb - mB) * out[OUT_NORMAL + c]
-                _set_result(upper, low, it + eit, tol_abs, out)
-                add_margins(mA, mB, tol_abs, out)
-                return int(out[OUT_STATUS])
-            # the EPA goes on with the bodies' supports, from the hulls' polytope (its own bound only:
-            # the result's witness points are its face's)
-            outcome, closed, upper, low, more, nv, top = epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel,
-                                                                 max_iter, nv, top, c0, c1, c2, math.inf, low, warm,
-                                                                 work, iwork, out)
-            eit += more
-            if outcome == EPA_INSIDE:
-                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CONTINUED
-                out[OUT_ITERATIONS] = it + eit
-                add_margins(mA, mB, tol_abs, out)
-                return int(out[OUT_STATUS])
-    # the hulls' polytope did not hold the origin: the EPA on the bodies from the descent's simplex
-    # (the bodies overlap by more than tol_abs: their grown hulls do)
-    outcome, closed, upper, low, more = epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
-                                            4 if status == OVERLAPPING else k, work[0:4], work[4:8], work[8:12],
-                                            work[20:22], math.inf, -math.inf, warm, work, iwork, out)
-    eit += more
-    work[EPA_ROW + EPA_TMP + 1, 3] = HULL_RESTARTED
-    if outcome != EPA_INSIDE:
-        # |sd| <= tol_abs with the origin outside the polytope (or no tetrahedron): the supports
-        # along the normal found, reported as failed unless the bounds closed
-        _set_result(upper, low, it + eit, tol_abs, out)
-        if not closed:
-            out[OUT_STATUS] = FAILED
-        _supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out)
-    out[OUT_ITERATIONS] = it + eit
-    add_margins(mA, mB, tol_abs, out)
-    return int(out[OUT_STATUS])
-
-
-@kernel
-def _core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
+def core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
     """h_D(n) of the cores along unit n (A's frame)."""
     pa = work[16]
     pb = work[17]
@@ -216,7 +146,7 @@ def _core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
 
 
 @kernel
-def _set_result(upper, lower, iterations, tol_abs, out):
+def set_result(upper, lower, iterations, tol_abs, out):
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper
     out[OUT_LOWER] = lower
@@ -225,7 +155,7 @@ def _set_result(upper, lower, iterations, tol_abs, out):
 
 
 @kernel
-def _supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out):
+def supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out):
     """Witness points: the bodies' supports along out's normal n (A's) and -n (B's)."""
     n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
     if not (n0 == n0):
