@@ -75,7 +75,7 @@ def test_coherent_ball_finish_settles_a_smooth_motion_within_the_plain_descents_
             else:
                 assert np.isnan(out).all() and np.array_equal(trial_warm, warm)  # nothing written
         gjk_query(ka.kind, ka.margin, ka.fdata, ka.idata, kb_.kind, kb_.margin, kb_.fdata, kb_.idata, R, t, TOL_ABS,
-                  TOL_REL, MAX_ITER, direction, np.zeros(6), warm, iwork, work, out)
+                  TOL_REL, MAX_ITER, direction, np.zeros(6), warm, iwork, work, out, False)
         separated += out[gjk.OUT_STATUS] == gjk.SEPARATED
     # not vacuous: the fast path settles most steps, some on tori, some after a patch change
     assert separated >= 0.9 * len(moving), separated

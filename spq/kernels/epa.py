@@ -705,7 +705,8 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
         w = work[EPA_ROW + EPA_TMP + 2]
         size = max(size, abs(w[0]), abs(w[1]), abs(w[2]))
         eps = VISIBLE_REL * size
-        if h - off <= eps or _is_vertex(work, nv, w):
+        # (a point above the face's plane cannot be a vertex already: the polytope is convex)
+        if h - off <= eps:
             # nothing of D beyond this face: the bounds are as good as this precision allows
             closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
             stop = STOP_NO_PROGRESS
