@@ -725,7 +725,7 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
     _witness(work, iw, f, out)
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper
-    out[OUT_LOWER] = lower
+    out[OUT_LOWER] = min(lower, upper)  # rounding may cross them by an ulp
     out[OUT_ITERATIONS] = it
     out[OUT_STATUS] = (TOUCHING if upper >= -tol_abs else OVERLAPPING) if closed else FAILED
     return EPA_INSIDE, closed, upper, lower, it, nv, top

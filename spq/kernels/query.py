@@ -390,7 +390,7 @@ def _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, 
     out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = u0, u1, u2
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper
-    out[OUT_LOWER] = low
+    out[OUT_LOWER] = min(low, upper)
     out[OUT_STATUS] = status_of(upper, tol_abs)
     return 1
 

@@ -131,6 +131,12 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
                 out[OUT_STATUS] = FAILED
     else:
         descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
+        if status == FAILED and not lower > 0.0:
+            # a descent that proved no separation has lower bound 0 on the distance, which bounds no
+            # signed distance; -h_D(n) does, for any unit n (sd = -min over n of h_D(n))
+            n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
+            low = -core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            out[OUT_LOWER] = min(low, out[OUT_UPPER])
     add_margins(mA, mB, tol_abs, out)
     return int(out[OUT_STATUS])
 
@@ -149,7 +155,7 @@ def core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
 def set_result(upper, lower, iterations, tol_abs, out):
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper
-    out[OUT_LOWER] = lower
+    out[OUT_LOWER] = min(lower, upper)  # rounding may cross them by an ulp
     out[OUT_ITERATIONS] = iterations
     out[OUT_STATUS] = status_of(upper, tol_abs)
 

@@ -1,0 +1,310 @@
+"""Signed distance (penetration depth) of spq: ``signed=True`` in distance, distances, Pair and Scene.
+
+Oracles (never spq itself):
+
+- harness.reference.MinkowskiReference: the exact signed distance of two polytopes from the hull of
+  their Minkowski difference (scipy's Qhull), with its own witness points and normal;
+- closed forms for primitives (spheres, capsules, axis-aligned boxes, containment);
+- the hulls' own plane equations for "on the surface" checks;
+- central finite differences of the reference's signed distance for gradients of overlaps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import spq
+from datasets import load_object
+from harness.poses import bucket_suite, pose_matrix
+from harness.reference import MinkowskiReference, reference_distance
+from spq.scene import Scene
+
+OVERLAP_BUCKETS = ["overlap-1e-4", "overlap-1e-3", "overlap-1e-2", "overlap-1e-1"]
+DEPTH_TOL = 1e-9  # m: spq's depth against the exact reference (acceptance 1)
+SURFACE_TOL = 1e-9  # m: witness points on their bodies' surfaces
+RELATION_TOL = 1e-12  # m: point_b - point_a = distance * normal
+PER_BUCKET = 40
+
+
+def off_surface(poly: spq.Polyhedron, poses: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """|signed distance| of world points to the boundary of poly at each pose, from its planes."""
+    local = np.einsum("nji,nj->ni", poses[:, :3, :3], points - poses[:, :3, 3])
+    return np.abs(poly.signed_distance_to_surface(local))
+
+
+@pytest.fixture(scope="module")
+def links():
+    return load_object("kuka_link_4"), load_object("kuka_link_2")
+
+
+@pytest.fixture(scope="module")
+def overlap_suite(links):
+    a, b = links
+    return bucket_suite(a, b, PER_BUCKET, seed=2611, buckets=OVERLAP_BUCKETS + ["touching", "close-1e-3"])
+
+
+# ---------------------------------------------------------------- polytopes against the exact reference
+
+
+def test_pch_depth_matches_the_exact_reference_in_every_overlap_bucket(links, overlap_suite):
+    a, b = links
+    s = overlap_suite
+    r = spq.distances(a, b, s.pose_a, s.pose_b, signed=True)
+    assert not (r.status == "failed").any()
+    for bucket in OVERLAP_BUCKETS:
+        m = s.bucket == bucket
+        assert m.sum() == PER_BUCKET and (s.ref_signed[m] < 0).all()
+        err = np.abs(r.distance[m] - s.ref_signed[m])
+        assert err.max() <= DEPTH_TOL, (bucket, err.max())
+        assert (r.status[m] == "overlapping").all()
+    # the certificate holds on every pose, both signs
+    assert (r.lower_bound <= s.ref_signed + 1e-15).all()
+    assert (s.ref_signed <= r.upper_bound + 1e-15).all()
+    assert (r.lower_bound <= r.distance).all() and (r.distance <= r.upper_bound).all()
+
+
+def test_pch_witness_points_lie_on_the_surfaces_and_span_the_signed_distance(links, overlap_suite):
+    a, b = links
+    s = overlap_suite
+    r = spq.distances(a, b, s.pose_a, s.pose_b, signed=True)
+    assert off_surface(a, s.pose_a, r.point_a).max() <= SURFACE_TOL
+    assert off_surface(b, s.pose_b, r.point_b).max() <= SURFACE_TOL
+    gap = r.point_b - r.point_a - r.distance[:, None] * r.normal
+    assert np.abs(gap).max() <= RELATION_TOL
+    np.testing.assert_allclose(np.linalg.norm(r.normal, axis=1), 1.0, atol=1e-12)
+    # the normal is the reference's direction of least penetration (unique on these random poses)
+    deep = s.ref_signed < -1e-6
+    cos = np.einsum("ij,ij->i", r.normal[deep], s.ref_normal[deep])
+    assert cos.min() >= 1 - 1e-9
+
+
+def test_single_queries_and_pairs_equal_the_batched_ones(links, overlap_suite):
+    a, b = links
+    s = overlap_suite
+    batch = spq.distances(a, b, s.pose_a[:30], s.pose_b[:30], signed=True)
+    pair = spq.Pair(a, b, signed=True)
+    for i in range(30):
+        one = spq.distance(a, s.pose_a[i], b, s.pose_b[i], signed=True)
+        warm = pair.distance(s.pose_a[i], s.pose_b[i])
+        assert abs(one.distance - batch.distance[i]) <= 1e-15
+        assert abs(warm.distance - s.ref_signed[i]) <= DEPTH_TOL
+        assert warm.lower_bound <= s.ref_signed[i] + 1e-15 <= warm.upper_bound + 2e-15
+
+
+def test_unsigned_results_are_unchanged(links, overlap_suite):
+    a, b = links
+    s = overlap_suite
+    plain = spq.distances(a, b, s.pose_a, s.pose_b)
+    explicit = spq.distances(a, b, s.pose_a, s.pose_b, signed=False)
+    for field in ("distance", "lower_bound", "point_a", "point_b", "normal", "iterations"):
+        np.testing.assert_array_equal(getattr(plain, field), getattr(explicit, field))
+    over = s.ref_signed < -1e-9
+    assert (plain.status[over] == "overlapping").all() and (plain.distance[over] == 0).all()
+    assert np.isnan(plain.point_a[over]).all()
+    signed = spq.distances(a, b, s.pose_a, s.pose_b, signed=True)
+    apart = s.ref_signed > 1e-9
+    np.testing.assert_array_equal(signed.distance[apart], plain.distance[apart])
+
+
+def test_random_poses_agree_with_the_reference_for_both_signs(links):
+    a, b = links
+    rng = np.random.default_rng(5)
+    n = 300
+    pa = np.stack([pose_matrix(R, rng.uniform(-0.05, 0.05, 3)) for R in Rotation.random(n, random_state=1).as_matrix()])
+    pb = np.stack([pose_matrix(R, rng.uniform(-0.15, 0.15, 3)) for R in Rotation.random(n, random_state=2).as_matrix()])
+    truth = np.array([reference_distance(a, b, pa[i], pb[i]).signed_distance for i in range(n)])
+    assert (truth < 0).sum() > 100  # most of these overlap, many deeply
+    r = spq.distances(a, b, pa, pb, signed=True)
+    assert np.abs(r.distance - truth).max() <= DEPTH_TOL
+    assert ((r.lower_bound <= truth + 1e-15) & (truth <= r.upper_bound + 1e-15)).all()
+
+
+# ---------------------------------------------------------------- primitives: closed forms
+
+
+def translate(x, y=0.0, z=0.0) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, 3] = x, y, z
+    return pose
+
+
+def rotated(pose, rotvec) -> np.ndarray:
+    out = pose.copy()
+    out[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    return out
+
+
+def check_result(res, expected, tol=1e-9):
+    assert res.status == ("overlapping" if expected < -1e-12 else res.status)
+    assert abs(res.distance - expected) <= tol, (res.distance, expected)
+    assert res.lower_bound <= expected + tol and expected <= res.upper_bound + tol
+    assert np.abs(res.point_b - res.point_a - res.distance * res.normal).max() <= RELATION_TOL
+
+
+@pytest.mark.parametrize("gap", [0.3, 1e-3, 1e-9, 0.0, -1e-9, -1e-3, -0.3, -1.1])
+def test_spheres(gap):
+    A, B = spq.Sphere(0.5), spq.Sphere(0.7)
+    res = spq.distance(A, np.eye(4), B, translate(1.2 + gap, 0.0, 0.0), signed=True)
+    check_result(res, gap, tol=1e-12)
+    np.testing.assert_allclose(res.normal, [1, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(res.point_a, [0.5, 0, 0], atol=1e-9)
+
+
+def test_coincident_spheres_give_the_sum_of_radii_along_some_unit_normal():
+    res = spq.distance(spq.Sphere(0.5), np.eye(4), spq.Sphere(0.25), np.eye(4), signed=True)
+    check_result(res, -0.75, tol=1e-12)
+    assert abs(np.linalg.norm(res.normal) - 1) <= 1e-12
+    assert abs(np.linalg.norm(res.point_a) - 0.5) <= 1e-12
+
+
+@pytest.mark.parametrize("depth", [1e-12, 1e-9, 1e-6, 1e-3, 0.05])
+@pytest.mark.parametrize("shift", [0.0, 0.013])
+def test_boxes_face_to_face(depth, shift):
+    # axis-aligned boxes: GJK ends with the origin on a face or an edge of a box-like simplex
+    A, B = spq.Box(0.5, 0.3, 0.2), spq.Box(0.4, 0.25, 0.1)
+    res = spq.distance(A, np.eye(4), B, translate(shift, 0.0, 0.3 - depth), signed=True)
+    check_result(res, -depth, tol=1e-12)
+    np.testing.assert_allclose(res.normal, [0, 0, 1], atol=1e-9)
+    assert abs(res.point_a[2] - 0.2) <= 1e-12 and abs(res.point_b[2] - (0.2 - depth)) <= 1e-12
+
+
+def test_a_box_inside_a_box_gets_the_least_way_out():
+    A, B = spq.Box(1.0, 0.8, 0.6), spq.Box(0.1, 0.1, 0.1)
+    # B's centre at (0.2, -0.5, 0.05): ways out along +x 0.9, -y 0.4, +z 0.65 (plus B's half size)
+    res = spq.distance(A, np.eye(4), B, translate(0.2, -0.5, 0.05), signed=True)
+    check_result(res, -(0.8 - 0.5 + 0.1), tol=1e-12)
+    np.testing.assert_allclose(res.normal, [0, -1, 0], atol=1e-9)
+
+
+def test_a_rotated_box_edge_into_a_face():
+    A, B = spq.Box(0.5, 0.5, 0.5), spq.Box(0.2, 0.2, 0.2)
+    depth = 0.01
+    # B turned 45 deg about x: its lowest edge is 0.2*sqrt(2) below its centre
+    pose_b = rotated(translate(0.1, 0.0, 0.5 + 0.2 * np.sqrt(2) - depth), [np.pi / 4, 0, 0])
+    res = spq.distance(A, np.eye(4), B, pose_b, signed=True)
+    check_result(res, -depth, tol=1e-12)
+    np.testing.assert_allclose(res.normal, [0, 0, 1], atol=1e-9)
+
+
+@pytest.mark.parametrize("gap", [0.2, -1e-6, -0.05])
+def test_crossing_capsules(gap):
+    A, B = spq.Capsule(0.1, 1.0), spq.Capsule(0.05, 0.7)
+    # A along z, B along x (both capsules lie along their local z): axes cross at distance 0.15 + gap
+    pose_b = rotated(translate(0.0, 0.15 + gap, 0.3), [0, np.pi / 2, 0])
+    res = spq.distance(A, np.eye(4), B, pose_b, signed=True)
+    check_result(res, gap, tol=1e-12)
+    np.testing.assert_allclose(res.normal, [0, 1, 0], atol=1e-9)
+
+
+def test_sphere_in_a_box_and_box_in_a_sphere():
+    box, ball = spq.Box(0.5, 0.4, 0.3), spq.Sphere(0.1)
+    res = spq.distance(box, np.eye(4), ball, translate(0.0, 0.0, 0.25), signed=True)
+    check_result(res, -(0.05 + 0.1), tol=1e-12)
+    np.testing.assert_allclose(res.normal, [0, 0, 1], atol=1e-9)
+    # swapped: now the box is B, and it must move down for the ball to leave through its top
+    res = spq.distance(ball, translate(0.0, 0.0, 0.25), box, np.eye(4), signed=True)
+    check_result(res, -(0.05 + 0.1), tol=1e-12)
+    np.testing.assert_allclose(res.normal, [0, 0, -1], atol=1e-9)
+
+
+# ---------------------------------------------------------------- status, bounds and bad input
+
+
+def test_an_iteration_cap_gives_failed_with_valid_bounds(links, overlap_suite):
+    a, b = links
+    s = overlap_suite
+    deep = np.flatnonzero(s.bucket == "overlap-1e-1")
+    r = spq.distances(a, b, s.pose_a[deep], s.pose_b[deep], signed=True, max_iter=4)
+    failed = r.status == "failed"
+    assert failed.any()
+    truth = s.ref_signed[deep]
+    assert (r.lower_bound[failed] <= truth[failed] + 1e-15).all()
+    assert (truth[failed] <= r.upper_bound[failed] + 1e-15).all()
+    ok = ~failed
+    assert (np.abs(r.distance[ok] - truth[ok]) <= DEPTH_TOL).all()
+
+
+@pytest.mark.parametrize("bad", ["yes", 1, None, np.array([True])])
+def test_signed_must_be_a_bool(links, bad):
+    a, b = links
+    with pytest.raises(ValueError, match="signed"):
+        spq.distance(a, np.eye(4), b, np.eye(4), signed=bad)
+    with pytest.raises(ValueError, match="signed"):
+        spq.distances(a, b, np.eye(4)[None], np.eye(4)[None], signed=bad)
+    with pytest.raises(ValueError, match="signed"):
+        spq.Pair(a, b, signed=bad)
+
+
+# ---------------------------------------------------------------- gradient and continuity through contact
+
+
+def test_gradient_of_an_overlap_matches_finite_differences_of_the_reference(links, overlap_suite):
+    a, b = links
+    s = overlap_suite
+    h = 1e-7
+    idx = np.flatnonzero(s.bucket == "overlap-1e-2")[:8]
+    for i in idx:
+        res = spq.distance(a, s.pose_a[i], b, s.pose_b[i], signed=True)
+        ga, gb = spq.distance_gradient(res, s.pose_a[i], s.pose_b[i])
+        assert np.isfinite(ga).all() and np.isfinite(gb).all()
+        ref = MinkowskiReference(a, b, s.pose_a[i], s.pose_b[i])
+        for k in range(3):  # translations of B: the exact signed distance is piecewise linear there
+            step = np.zeros(3)
+            step[k] = h
+            fd = (ref.query(step).signed_distance - ref.query(-step).signed_distance) / (2 * h)
+            assert abs(fd - gb[k]) <= 1e-6, (i, k, fd, gb[k])
+        np.testing.assert_allclose(ga[:3], -gb[:3])
+    # unsigned overlaps still have none
+    res = spq.distance(a, s.pose_a[idx[0]], b, s.pose_b[idx[0]])
+    assert np.isnan(spq.distance_gradient(res, s.pose_a[idx[0]], s.pose_b[idx[0]])[1]).all()
+
+
+def test_signed_distance_is_continuous_through_contact(links):
+    # B slides along a line through A and out again: the exact signed distance is 1-Lipschitz in the
+    # translation, so no two steps may differ by more than the step length
+    a, b = links
+    rng = np.random.default_rng(9)
+    for trial in range(3):
+        R = Rotation.random(random_state=trial).as_matrix()
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        ts = np.linspace(-0.4, 0.4, 401)
+        pb = np.stack([pose_matrix(R, t * u) for t in ts])
+        pa = np.broadcast_to(np.eye(4), pb.shape).copy()
+        r = spq.distances(a, b, pa, pb, signed=True)
+        assert (r.distance < 0).any() and (r.distance > 0).any()
+        step = ts[1] - ts[0]
+        assert np.abs(np.diff(r.distance)).max() <= step * (1 + 1e-9)
+        truth = np.array([reference_distance(a, b, pa[i], pb[i]).signed_distance for i in range(0, len(ts), 10)])
+        assert np.abs(r.distance[::10] - truth).max() <= DEPTH_TOL
+
+
+# ---------------------------------------------------------------- robot scenes
+
+
+def test_scene_signed_distances_match_the_reference_per_pair():
+    from datasets.robots import ROBOTS
+
+    files = ROBOTS["panda"]
+    scene = Scene.from_urdf(files.urdf, mesh_root=files.mesh_root, policy="pch")
+    rng = np.random.default_rng(3)
+    qs = rng.uniform(scene.model.lower, scene.model.upper, (300, len(scene.model.lower)))
+    # keep configurations where some pair overlaps (about one in seven); spq only picks them, the
+    # reference judges every pair of them
+    chosen = [q for q in qs if (scene.distances(q, signed=True).distance < -1e-6).any()][:5]
+    assert len(chosen) == 5
+    overlaps = 0
+    for q in chosen:
+        signed = scene.distances(q, signed=True)
+        plain = scene.distances(q)
+        poses = scene.body_poses(q)
+        for k, (i, j) in enumerate(signed.pairs):
+            ref = reference_distance(scene.bodies[i].hull, scene.bodies[j].hull, poses[i], poses[j])
+            assert abs(signed.distance[k] - ref.signed_distance) <= DEPTH_TOL
+            assert signed.lower_bound[k] <= ref.signed_distance + 1e-15 <= signed.upper_bound[k] + 2e-15
+            if ref.signed_distance > 1e-9:
+                assert signed.distance[k] == plain.distance[k]
+            overlaps += ref.signed_distance < -1e-9
+    assert overlaps >= 5
