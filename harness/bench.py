@@ -76,25 +76,53 @@ def _shapes(config: BenchConfig, load_object) -> dict:
     return shapes
 
 
+def _signed_modes(shape_a, shape_b) -> list[tuple[str, object]]:
+    """spq's signed timing modes (overlaps get their penetration depth), as timing_modes."""
+    import spq
+
+    pair = spq.Pair(shape_a, shape_b, signed=True)
+
+    def per_call(poses_a, poses_b):
+        query = pair.distance
+        return np.array([query(pa, pb).distance for pa, pb in zip(poses_a, poses_b)])
+
+    def batched(poses_a, poses_b):
+        return spq.distances(shape_a, shape_b, poses_a, poses_b, signed=True).distance
+
+    return [("batched signed", batched), ("per-call signed", per_call)]
+
+
 def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.DataFrame:
     """Queries per second per pair type, engine and mode on two copies of one object, with the
-    ratio to coal's PCH-PCH rate. External engines only run PCH-PCH (they have no STP-BV)."""
+    ratio to coal's PCH-PCH rate. External engines only run PCH-PCH (they have no STP-BV).
+
+    coal always runs with signed distance on (its EPA on overlaps); spq runs unsigned (overlaps get
+    distance 0) and, in the modes named "signed", with signed=True. Every job runs on all poses
+    (``poses`` = "all") and again on the overlapping ones alone ("overlapping": those coal's result
+    calls overlapping), where a signed engine pays for its depth on every query; ratios are to coal's
+    PCH-PCH rate on the same poses."""
     from tqdm import tqdm
 
     shapes = _shapes(config, load_object)
     poses_a, poses_b = random_poses(config.poses, config.seed, config.translation_range)
     engines = available_engines(config.engines)
     runs = [(p, name) for p in config.pairs for name in engines if p == "PCH-PCH" or name == "spq"]
-    n = len(poses_a)
-    prepared, jobs = [], {}
+    prepared, modes = [], {}
     try:
         for pair_type, name in runs:
             a_kind, b_kind = pair_type.split("-")
             pair = engines[name].prepare(shapes[a_kind], shapes[b_kind])
             prepared.append(pair)
-            for mode, fn in timing_modes(pair):
+            extra = _signed_modes(shapes[a_kind], shapes[b_kind]) if name == "spq" else []
+            for mode, fn in timing_modes(pair) + extra:
                 fn(poses_a[:8], poses_b[:8])  # compile and warm
-                jobs[(pair_type, name, mode)] = lambda fn=fn: fn(poses_a, poses_b)
+                modes[(pair_type, name, mode)] = fn
+        overlapping = _overlapping(modes, poses_a, poses_b)
+        subsets = {"all": (poses_a, poses_b)}
+        if overlapping.any():
+            subsets["overlapping"] = (poses_a[overlapping], poses_b[overlapping])
+        jobs = {key + (subset,): (lambda fn=fn, pa=pa, pb=pb: fn(pa, pb))
+                for subset, (pa, pb) in subsets.items() for key, fn in modes.items()}
         with tqdm(total=config.repeats * len(jobs), desc="bench", unit="run", disable=not progress) as bar:
             timed = best_times(jobs, config.repeats, progress=bar)
     finally:
@@ -102,16 +130,30 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
             pair.close()
         for engine in engines.values():
             engine.close()
-    rows = [{"pair": pair_type, "engine": name, "mode": mode, "queries": n, "seconds": seconds,
-             "queries_per_s": n / seconds, "overlapping": int(np.sum(np.asarray(dist) <= 0.0))}
-            for (pair_type, name, mode), (seconds, dist) in timed.items()]
+    rows = [{"pair": pair_type, "engine": name, "mode": mode, "poses": subset, "queries": len(subsets[subset][0]),
+             "seconds": seconds, "queries_per_s": len(subsets[subset][0]) / seconds,
+             "overlapping": int(np.sum(np.asarray(dist) <= 0.0))}
+            for (pair_type, name, mode, subset), (seconds, dist) in timed.items()]
     table = pd.DataFrame(rows)
-    base = table.loc[(table.pair == BASELINE[0]) & (table.engine == BASELINE[1]), "queries_per_s"]
-    table["ratio_to_coal_pch"] = table.queries_per_s / base.iloc[0] if len(base) else np.nan
+    table["ratio_to_coal_pch"] = np.nan
+    for subset in subsets:
+        here = table.poses == subset
+        base = table.loc[here & (table.pair == BASELINE[0]) & (table.engine == BASELINE[1]), "queries_per_s"]
+        if len(base):
+            table.loc[here, "ratio_to_coal_pch"] = table.loc[here, "queries_per_s"] / base.iloc[0]
     table.insert(0, "object", config.object_name)
     table["features"] = table.pair.map(lambda p: "+".join(str(_feature_count(shapes[k])) for k in p.split("-")))
     table["seed"] = config.seed
     return table
+
+
+def _overlapping(modes: dict, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+    """(N,) bool: the poses the baseline engine (coal, else spq) finds overlapping on PCH-PCH."""
+    for engine in (BASELINE[1], "spq"):
+        for (pair_type, name, _), fn in modes.items():
+            if pair_type == BASELINE[0] and name == engine:
+                return np.asarray(fn(poses_a, poses_b)) <= 0.0
+    return np.zeros(len(poses_a), dtype=bool)
 
 
 def _feature_count(shape) -> int:

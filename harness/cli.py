@@ -117,6 +117,8 @@ def cmd_table1(args) -> int:
           "## spq, queries per second (all poses)", "", markdown_table(t1.lower_triangle(table, "queries_per_s")), "",
           "## spq, queries per second on the separated poses only", "",
           markdown_table(t1.lower_triangle(table, "separated_queries_per_s")), "",
+          "## spq, signed queries per second (all poses; overlaps get their penetration depth)", "",
+          markdown_table(t1.lower_triangle(table, "signed_queries_per_s")), "",
           "## The paper's Table I (HRP-2 link, 300 vertices, Pentium 4, C++)", "",
           markdown_table(t1.lower_triangle(table, "paper_queries_per_s")), "",
           "## Time relative to PCH-PCH (spq here / the paper)", "",
@@ -130,8 +132,8 @@ def cmd_table1(args) -> int:
     (out / "table1.md").write_text("\n".join(md))
     print(t1.lower_triangle(table, "queries_per_s").to_string(index=False))
     print()
-    _print(table[["row", "column", "queries_per_s", "separated_queries_per_s", "overlapping", "mean_iterations",
-                  "time_vs_pch", "paper_time_vs_pch"]])
+    _print(table[["row", "column", "queries_per_s", "separated_queries_per_s", "signed_queries_per_s", "overlapping",
+                  "signed_failed", "mean_iterations", "time_vs_pch", "paper_time_vs_pch"]])
     print()
     _print(volumes)
     print(f"\ncoal PCH-PCH in the same run: {coal_qps:,.0f} queries/s; spq PCH-PCH / coal = "
@@ -163,11 +165,12 @@ def cmd_bench(args) -> int:
     notes = (f"Two copies of {args.object}, {args.poses} pose pairs with uniformly random rotations and "
              f"translations uniform in ±{args.range} m, seed {args.seed}. Best of {args.repeats} repeats; every "
              "engine in the same run. per-call: one Python call per query; batched: one compiled call for all "
-             "poses. features: vertices (PCH) or patches (STP) of each side.")
+             "poses; signed: spq with signed=True (penetration depth on overlaps; coal always runs with signed "
+             "distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side.")
     if args.suite == "stp":
         notes += f" STP-BV built from the link's hull vertices with r = {args.r} m, R = {args.R} m."
     write_table(table, Path(args.out), f"bench_{args.suite}", f"Throughput ({args.suite})", meta, notes)
-    _print(table[["pair", "engine", "mode", "queries_per_s", "ratio_to_coal_pch", "features", "overlapping"]])
+    _print(table[["pair", "engine", "mode", "poses", "queries_per_s", "ratio_to_coal_pch", "features", "overlapping"]])
     return 0
 
 
@@ -213,7 +216,13 @@ def cmd_bench_robot(args) -> int:
     write_table(tables["kinematics"], out, "robot_kinematics", "Robot scene: forward kinematics against pybullet",
                 meta, where + "Every link's world pose from spq (URDF read by yourdfpy, compiled kinematics) against "
                 "pybullet's (its own URDF parser), composed in double precision from its centre-of-mass frames.")
+    write_table(tables["signed"], out, "robot_signed", "Robot scene: signed distances (penetration depth)", meta,
+                where + "Every pair cold at the random configurations, unsigned (an overlap is distance 0) and with "
+                "signed=True (an overlap gets minus its penetration depth), the two timed in turn within each "
+                f"round, best of {args.repeats} per block of {rb.TIMING_BLOCK}. deepest overlap: the least signed "
+                "distance of a configuration, over those with an overlap.")
     _print(tables["kinematics"])
+    _print(tables["signed"])
     _print(tables["scene"][["policy", "configurations", "mode", "pruning_m", "ms_per_config", "pairs_per_s",
                             "mean_iterations", "median_min_distance_m", "median_min_separated_m",
                             "configs_with_overlap"]])
@@ -287,8 +296,28 @@ def cmd_continuity(args) -> int:
     ct.plot_paths(paths, out / "continuity_witness_paths.png",
                   f"parallel_faces ({args.object}): witness point on B along the sweep")
     _print(summary)
+    from harness import contact_continuity as cc
+
+    contact_config = cc.ContactConfig(object_name=args.object, r=config.r, R=config.R, seed=args.seed,
+                                      grid=201 if args.quick else 401)
+    contact, curves = cc.run(contact_config, load_object, progress=True)
+    contact_summary = cc.summary(contact)
+    contact_notes = (f"Signed distance (spq, signed=True, tolerance {cc.TOL['tol']:g}) along {contact_config.paths} "
+                     f"seeded paths per pair that enter and leave contact (B turns {contact_config.turn} rad while "
+                     f"crossing A, from {contact_config.gap} m apart to about {contact_config.depth} m deep and out; "
+                     "harness/contact_continuity.py), on a grid of "
+                     f"{contact_config.grid} points. max_crossing_jump_m: |sd| difference left after {cc.BISECTIONS} "
+                     "bisections of each sign change (a jump at contact would stay). gradient_jumps: of B's 6-vector "
+                     f"gradient, the {cc.JUMP_CANDIDATES} largest relative changes per path bisected "
+                     f"{contact_config.gradient_bisections} times; a jump keeps over {cc.JUMP_RESIDUAL} of its change; "
+                     "in_contact: at a step where sd < 0.")
+    write_table(contact, out, "contact_continuity", "Continuity through contact, per path", meta, contact_notes)
+    write_table(contact_summary, out, "contact_continuity_summary", "Continuity through contact", meta, contact_notes)
+    cc.plot(curves, out / "contact_continuity.png",
+            f"Through contact ({args.object}): signed distance and gradient along one path per pair")
+    _print(contact_summary)
     print(f"\nwrote {out}/continuity.csv, .md, continuity_summary.*, continuity_lipschitz.png, "
-          f"continuity_witness_paths.png in {time.perf_counter() - start:.0f} s")
+          f"continuity_witness_paths.png, contact_continuity* in {time.perf_counter() - start:.0f} s")
     return 0
 
 

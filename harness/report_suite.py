@@ -62,11 +62,15 @@ def crosscheck_section(out: Path) -> Section:
 
 def bench_section(out: Path, suite: str, title: str) -> Section:
     table = _read(out, f"bench_{suite}.csv")
-    rows = [f"{r.pair} {r.engine} {r['mode']}: {r.queries_per_s:,.0f} queries/s, {r.ratio_to_coal_pch:.2f}x coal's PCH-PCH"
-            for _, r in table.iterrows() if r.engine == "spq"]
-    return Section(title, ["Same link, same poses, every engine in one run (best of the repeats). " + "; ".join(rows) + "."],
-                   [("Queries per second", table[["pair", "engine", "mode", "queries_per_s", "ratio_to_coal_pch",
-                                                  "features", "overlapping"]])])
+    if "poses" not in table:
+        table["poses"] = "all"
+    rows = [f"{r.pair} {r.engine} {r['mode']} ({r.poses} poses): {r.queries_per_s:,.0f} queries/s, "
+            f"{r.ratio_to_coal_pch:.2f}x coal's PCH-PCH" for _, r in table.iterrows() if r.engine == "spq"]
+    return Section(title, ["Same link, same poses, every engine in one run (best of the repeats). coal runs with "
+                           "signed distance on (EPA on overlaps); spq's 'signed' modes give the penetration depth too. "
+                           "The overlapping rows time the poses coal finds overlapping, alone. " + "; ".join(rows) + "."],
+                   [("Queries per second", table[["pair", "engine", "mode", "poses", "queries_per_s",
+                                                  "ratio_to_coal_pch", "features", "overlapping"]])])
 
 
 def support_section(out: Path) -> Section:
@@ -97,8 +101,22 @@ def continuity_section(out: Path) -> Section:
                "(parallel faces); pairs with an STP-BV or a superellipsoid stay bounded: their gradient is continuous.")
     paths = ("Witness point of B along the parallel-face rotation: PCH-PCH jumps across the face as the faces pass "
              "parallel; the strictly convex covers move it continuously.")
-    return Section("Gradient continuity", [], [("Summary", summary)],
-                   [Chart(out / "continuity_lipschitz.png", caption), Chart(out / "continuity_witness_paths.png", paths)])
+    tables, charts = [("Summary", summary)], [Chart(out / "continuity_lipschitz.png", caption),
+                                              Chart(out / "continuity_witness_paths.png", paths)]
+    paragraphs = []
+    if (out / "contact_continuity_summary.csv").exists():
+        contact = _read(out, "contact_continuity_summary.csv")
+        paragraphs.append(
+            "Through contact (signed distance): largest jump of the signed distance left at a sign change after "
+            "bisection " + ", ".join(f"{r.pair} {r.max_crossing_jump_m:.2g} m" for r in contact.itertuples())
+            + "; gradient jumps " + ", ".join(f"{r.pair} {int(r.gradient_jumps)} ({int(r.gradient_jumps_in_contact)} "
+                                               "in contact)" for r in contact.itertuples()) + ".")
+        tables.append(("Through contact", contact))
+        charts.append(Chart(out / "contact_continuity.png",
+                            "Signed distance (top) and the norm of its gradient in B's rotation (bottom) along one path per pair that "
+                            "enters and leaves contact; dotted lines mark gradient jumps confirmed by bisection. The "
+                            "signed distance passes zero without a step; only PCH-PCH's gradient jumps."))
+    return Section("Gradient continuity", paragraphs, tables, charts)
 
 
 def tradeoff_section(out: Path) -> Section:
@@ -190,10 +208,19 @@ def robot_section(out: Path) -> Section:
         Chart(out / "robot_distance_matrix.png", "Distance (m) of every pair at one random posture, auto policy; "
               "white: skipped (adjacent bodies, and the diagonal); black squares: overlapping hulls."),
     ]
-    return Section("Robot scene: whole-body self-distance", paragraphs,
-                   [("Forward kinematics against pybullet", _read(out, "robot_kinematics.csv")),
-                    ("All pairs per configuration", scene), ("Against coal and python-fcl", engines),
-                    ("Gradient continuity", cont)], charts)
+    tables = [("Forward kinematics against pybullet", _read(out, "robot_kinematics.csv")),
+              ("All pairs per configuration", scene), ("Against coal and python-fcl", engines),
+              ("Gradient continuity", cont)]
+    if (out / "robot_signed.csv").exists():
+        signed = _read(out, "robot_signed.csv")
+        paragraphs.append("Signed distances (every pair cold; overlaps get minus their penetration depth), timed in "
+                          "turn with the unsigned run: " + "; ".join(
+                              f"{r.policy} {r.signed_ms_per_config:.3g} ms, {r.signed_over_unsigned:.2f}x unsigned, "
+                              f"{int(r.configs_with_overlap)} of {int(r.configurations)} configurations with an overlap, "
+                              f"median deepest {r.median_deepest_overlap_m:.2g} m, {int(r.signed_failed)} failed"
+                              for r in signed.itertuples()) + " (target for auto: at most 1.15x).")
+        tables.append(("Signed distances", signed))
+    return Section("Robot scene: whole-body self-distance", paragraphs, tables, charts)
 
 
 SUITES = [

@@ -96,6 +96,39 @@ def best_run(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None, 
     return float(best.sum()), out
 
 
+def signed_rows(scenes: dict, qs: np.ndarray, repeats: int, block: int = TIMING_BLOCK) -> pd.DataFrame:
+    """Per policy, every pair cold over qs, unsigned and signed=True timed in turn within each round
+    (so the ratio between them is fair on a shared machine), with the deepest pair per configuration
+    (the least signed distance) and the failures of the signed run."""
+    rows = []
+    for policy, scene in scenes.items():
+        outs = {signed: np.zeros((len(qs), len(scene.pairs), OUT_SIZE)) for signed in (False, True)}
+        for signed in outs:
+            scene.distances_many(qs[:2], signed=signed)  # compile / load the kernels
+        starts = range(0, len(qs), block)
+        best = {signed: np.full(len(starts), np.inf) for signed in outs}
+        for _ in range(repeats):
+            for i, s0 in enumerate(starts):
+                for signed, out in outs.items():
+                    t0 = time.perf_counter()
+                    scene.distances_many(qs[s0:s0 + block], signed=signed, out=out[s0:s0 + block])
+                    best[signed][i] = min(best[signed][i], time.perf_counter() - t0)
+        signed_out = outs[True]
+        deepest = signed_out[:, :, OUT_DISTANCE].min(axis=1)
+        status = signed_out[:, :, OUT_STATUS]
+        unsigned_ms, signed_ms = (1e3 * best[s].sum() / len(qs) for s in (False, True))
+        rows.append({"policy": policy, "configurations": len(qs), "pairs": len(scene.pairs),
+                     "unsigned_ms_per_config": unsigned_ms, "signed_ms_per_config": signed_ms,
+                     "signed_over_unsigned": signed_ms / unsigned_ms,
+                     "configs_with_overlap": int((deepest < 0).sum()),
+                     "mean_overlapping_pairs": float((status == OVERLAPPING).sum(axis=1).mean()),
+                     "median_deepest_overlap_m": float(np.median(-deepest[deepest < 0])) if (deepest < 0).any()
+                     else 0.0,
+                     "max_depth_m": float(max(0.0, -deepest.min())),
+                     "signed_failed": int((status == 3).sum())})
+    return pd.DataFrame(rows)
+
+
 def summary_row(scene: Scene, policy: str, source: str, coherent: bool, prune, seconds: float,
                 out: np.ndarray) -> dict:
     n, npairs = out.shape[0], out.shape[1]
@@ -382,11 +415,12 @@ def run(config: RobotBenchConfig, out_dir: Path, progress: bool = True) -> dict:
     scenes.setdefault("pch", pch)
     if "auto" not in scenes:
         scenes["auto"] = load_scene(config, "auto")
+    signed = signed_rows({p: scenes[p] for p in config.policies if p in scenes}, randoms, config.repeats)
     # the continuity track: the first 1/CONTINUITY_ZOOM of a trajectory sampled CONTINUITY_ZOOM times finer
     fine = smooth_trajectory(base.model, config.steps * CONTINUITY_ZOOM, config.seed)[:config.steps]
     continuity, tracks = continuity_table(scenes, fine)
     plot_distance_matrix(scenes["auto"], randoms[0], out_dir / "robot_distance_matrix.png", "auto")
     plot_trajectory(tracks, out_dir / "robot_trajectory.png")
     plot_engines(table, engines, out_dir / "robot_engines.png")
-    return {"scene": table, "engines": engines, "continuity": continuity, "kinematics": kinematics,
+    return {"scene": table, "engines": engines, "continuity": continuity, "kinematics": kinematics, "signed": signed,
             "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name}

@@ -95,6 +95,10 @@ def run(config: Table1Config, load_object, progress: bool = True) -> tuple[pd.Da
         jobs[a_name, b_name, "all"] = lambda a=a, b=b, pa=pa, pb=pb: spq.distances(a.shape, b.shape, pa, pb)
         jobs[a_name, b_name, "separated"] = lambda a=a, b=b, pa=pa_sep, pb=pb_sep: spq.distances(a.shape, b.shape,
                                                                                                  pa, pb)
+        signed = spq.distances(a.shape, b.shape, pa, pb, signed=True)  # compile and warm the signed path
+        statuses[a_name, b_name, "signed"] = signed
+        jobs[a_name, b_name, "signed"] = lambda a=a, b=b, pa=pa, pb=pb: spq.distances(a.shape, b.shape, pa, pb,
+                                                                                      signed=True)
     coal_pair = CoalEngine().prepare(bodies["PCH"].shape, bodies["PCH"].shape)
     coal_pair.distance_loop(poses_a[:8], poses_b[:8])
     jobs["coal"] = lambda: coal_pair.distance_loop(poses_a, poses_b)
@@ -110,6 +114,8 @@ def run(config: Table1Config, load_object, progress: bool = True) -> tuple[pd.Da
                      "overlapping": int((~sep).sum()), "failed": int((res.status == "failed").sum()),
                      "mean_iterations": float(res.iterations.mean()),
                      "mean_iterations_separated": float(res.iterations[sep].mean()),
+                     "signed_queries_per_s": len(res.status) / timed[a_name, b_name, "signed"][0],
+                     "signed_failed": int((statuses[a_name, b_name, "signed"].status == "failed").sum()),
                      "paper_queries_per_s": PAPER_QPS[(a_name, b_name)]})
     table = pd.DataFrame(rows)
     pch = table.loc[(table.row == "PCH") & (table.column == "PCH"), "queries_per_s"].iloc[0]
