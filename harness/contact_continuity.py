@@ -35,7 +35,7 @@ import spq
 from harness.continuity import PAIRS, Body, build_bodies
 from harness.report.charts import save_figure
 
-TOL = dict(tol=1e-12, rel_tol=1e-12)
+TOL = dict(tol=spq.DEFAULT_TOL_ABS, rel_tol=spq.DEFAULT_TOL_REL)
 BISECTIONS = 40  # halvings of a crossing interval; of a gradient-jump candidate
 JUMP_CANDIDATES = 6
 JUMP_RESIDUAL = 0.5
