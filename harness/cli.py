@@ -310,7 +310,9 @@ def cmd_continuity(args) -> int:
                      "bisections of each sign change (a jump at contact would stay). gradient_jumps: of B's 6-vector "
                      f"gradient, the {cc.JUMP_CANDIDATES} largest relative changes per path bisected "
                      f"{contact_config.gradient_bisections} times; a jump keeps over {cc.JUMP_RESIDUAL} of its change; "
-                     "in_contact: at a step where sd < 0.")
+                     "in_contact: at a step where sd < 0; deeper_than_r: where the depth exceeds the STP-BV's "
+                     f"small radius r = {config.r} m (below it the depth of a pair with an STP-BV is C1; deeper, the "
+                     "nearest boundary point of the Minkowski difference can switch, for any bodies).")
     write_table(contact, out, "contact_continuity", "Continuity through contact, per path", meta, contact_notes)
     write_table(contact_summary, out, "contact_continuity_summary", "Continuity through contact", meta, contact_notes)
     cc.plot(curves, out / "contact_continuity.png",

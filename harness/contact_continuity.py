@@ -10,7 +10,7 @@ where u is the seeded direction from A to B and t_0, t_half, t_1 the distances a
 bodies touch at the rotations of s = 0, 0.5 and 1, found by bisection on spq's signed distance
 (placement only): the path starts and ends apart and is in contact at s = 0.5.
 
-Metrics per pair and path, on spq's ``signed=True`` queries (tolerance 1e-13):
+Metrics per pair and path, on spq's ``signed=True`` queries (spq's default tolerances):
 
 - ``crossings``: sign changes of the signed distance on the grid; each is bisected ``BISECTIONS``
   times in s and ``max_crossing_jump_m`` is the largest |sd(s1) - sd(s0)| left on the final
@@ -20,7 +20,11 @@ Metrics per pair and path, on spq's ``signed=True`` queries (tolerance 1e-13):
 - gradient jumps: B's 6-vector gradient (spq.distance_gradients) along the path; the
   ``JUMP_CANDIDATES`` steps with the largest relative change are bisected ``BISECTIONS`` times
   (as in the robot suite); a jump keeps over ``JUMP_RESIDUAL`` of its change. Counted over the
-  whole path and over the part in contact (sd < 0) apart.
+  whole path, over the part in contact (sd < 0), and over the part deeper than the STP-BV's small
+  radius r apart: down to depth r the boundary point nearest the origin inside the Minkowski
+  difference is unique for an STP-BV (a ball of radius r rolls inside it), so its gradient must not
+  jump; deeper, that point can switch across the difference's medial axis, for any pair of bodies,
+  and the gradient of the penetration depth jumps there by nature.
 """
 
 from __future__ import annotations
@@ -155,11 +159,13 @@ def measure(path: ContactPath, config: ContactConfig) -> tuple[dict, dict]:
     residual = np.array([gradient_residual(path, s[k], s[k + 1], config.gradient_bisections) for k in candidates])
     jump_steps = candidates[residual > JUMP_RESIDUAL]
     in_contact = sign[jump_steps] | sign[jump_steps + 1]
+    deep = np.minimum(d[jump_steps], d[jump_steps + 1]) < -config.r
     row = {"min_signed_m": float(d.min()), "failed": int((r.status == "failed").sum()),
            "crossings": int(len(crossings)),
            "max_crossing_jump_m": float(max(jumps)) if jumps else np.nan,
            "lipschitz_m_per_s": float(np.abs(np.diff(d)).max() / h),
            "gradient_jumps": int(len(jump_steps)), "gradient_jumps_in_contact": int(in_contact.sum()),
+           "gradient_jumps_deeper_than_r": int(deep.sum()),
            "largest_gradient_residual": float(residual.max()) if residual.size else np.nan}
     return row, {"s": s, "distance": d, "gradient_norm": np.linalg.norm(grad[:, 3:], axis=1), "jumps": s[jump_steps]}
 
@@ -181,12 +187,14 @@ def run(config: ContactConfig, load_object, progress: bool = False) -> tuple[pd.
 
 
 def summary(table: pd.DataFrame) -> pd.DataFrame:
-    """Per pair: paths, crossings, the largest crossing jump, gradient jumps (all, in contact)."""
+    """Per pair: paths, crossings, the largest crossing jump, gradient jumps (all, in contact, deeper
+    than r)."""
     return table.groupby("pair", sort=False).agg(
         paths=("path", "count"), deepest_m=("min_signed_m", "min"), failed=("failed", "sum"),
         crossings=("crossings", "sum"), max_crossing_jump_m=("max_crossing_jump_m", "max"),
         max_lipschitz_m_per_s=("lipschitz_m_per_s", "max"), gradient_jumps=("gradient_jumps", "sum"),
-        gradient_jumps_in_contact=("gradient_jumps_in_contact", "sum")).reset_index()
+        gradient_jumps_in_contact=("gradient_jumps_in_contact", "sum"),
+        gradient_jumps_deeper_than_r=("gradient_jumps_deeper_than_r", "sum")).reset_index()
 
 
 def plot(curves: dict, path, title: str = "") -> None:

@@ -110,12 +110,15 @@ def continuity_section(out: Path) -> Section:
             "Through contact (signed distance): largest jump of the signed distance left at a sign change after "
             "bisection " + ", ".join(f"{r.pair} {r.max_crossing_jump_m:.2g} m" for r in contact.itertuples())
             + "; gradient jumps " + ", ".join(f"{r.pair} {int(r.gradient_jumps)} ({int(r.gradient_jumps_in_contact)} "
-                                               "in contact)" for r in contact.itertuples()) + ".")
+                                               f"in contact, {int(r.gradient_jumps_deeper_than_r)} deeper than r)"
+                                               for r in contact.itertuples())
+            + ". Deeper than the STP-BV's small radius r the penetration depth's gradient may jump for any bodies "
+              "(the nearest boundary point of the Minkowski difference switches); down to that depth, with an STP-BV on a side, it may not.")
         tables.append(("Through contact", contact))
         charts.append(Chart(out / "contact_continuity.png",
                             "Signed distance (top) and the norm of its gradient in B's rotation (bottom) along one path per pair that "
                             "enters and leaves contact; dotted lines mark gradient jumps confirmed by bisection. The "
-                            "signed distance passes zero without a step; only PCH-PCH's gradient jumps."))
+                            "signed distance passes zero without a step; in shallow contact only PCH-PCH's gradient jumps."))
     return Section("Gradient continuity", paragraphs, tables, charts)
 
 

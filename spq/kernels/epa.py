@@ -48,6 +48,7 @@ from spq.kernels.epa_layout import (
     EPA_HORIZON,
     EPA_MAX_FACES,
     EPA_MAX_VERTICES,
+    EPA_NEAR,
     EPA_NFREE,
     EPA_PA,
     EPA_PB,
@@ -70,13 +71,16 @@ from spq.kernels.gjk import (
     OUT_STATUS,
     OUT_UPPER,
     OVERLAPPING,
+    SEPARATED,
     TOUCHING,
+    closest_on_triangle,
     minkowski_support,
 )
 from spq.kernels.jit import kernel
 
 SLIVER_SIN = 1e-7  # least sine of a face's largest angle: below, its plane is ill-defined in floating point
 VISIBLE_REL = 1e-13  # a face sees a point above its plane by more than this times the polytope's size
+NOISE_REL = 1e-14  # a difference of points below this times the polytope's size is rounding noise
 FLAT_REL = 1e-13  # support points within this (relative) of a line or plane: D has no extent across it
 STALL_SLACK = 1e-9  # relative: a stalled expansion still counts as converged within this gap
 WALK_STEPS = 16  # steps across coplanar neighbours to the face holding the origin's projection
@@ -87,8 +91,9 @@ STOP_HORIZON, STOP_FACE_SLOTS, STOP_FAN_SLIVER, STOP_FAN_INWARD = 5, 6, 7, 8  # 
 PLANE_OK, PLANE_SLIVER, PLANE_INWARD = 0, 1, 2
 
 # EPA outcomes
-EPA_INSIDE = 0  # the origin lies in P: out holds the result (status FAILED if the bounds did not close)
-EPA_OUTSIDE = 1  # the origin lies outside P (|sd| <= tol_abs certified, unless it stopped): the GJK's points stand
+EPA_RESULT = 0  # out holds the result (status FAILED if the bounds did not close): the origin in P, or
+# outside it nearer P than the caller's upper bound (P lies in D, so its distance bounds sd from above)
+EPA_OUTSIDE = 1  # the origin lies outside P, no nearer than the caller's bound: the GJK's points stand
 EPA_FLAT = 2  # D has no interior (flat cores): sd >= 0; out's normal is one across the flat set (NaN: any)
 
 
@@ -627,6 +632,45 @@ def _witness(work, iw, f, out):
     out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2
 
 
+@kernel
+def _face_distance(work, iw, f):
+    """Distance from the origin to face f's triangle, its nearest point's weights left in row
+    EPA_NEAR + 3 (corners 0, 1, 2)."""
+    W = work[EPA_ROW + EPA_NEAR:EPA_ROW + EPA_NEAR + 3]
+    for k in range(3):
+        v = _row(_corner(iw, f, k))
+        for c in range(3):
+            W[k, c] = work[v, c]
+    mask, d2 = closest_on_triangle(W, 0, 1, 2, work[EPA_ROW + EPA_NEAR + 3], work[EPA_ROW + EPA_NEAR + 4])
+    return math.sqrt(d2)
+
+
+@kernel
+def _near_witness(work, iw, f, size, out):
+    """Witness points and normal of an origin outside P, nearest face f (weights from
+    _face_distance): the nearest point p = a - b of the face, normal -p / |p| (A to B), or the
+    face's outward normal where |p| is rounding noise of the polytope's size."""
+    lam = work[EPA_ROW + EPA_NEAR + 3]
+    for c in range(3):
+        sa = 0.0
+        sb = 0.0
+        for k in range(3):
+            v = _corner(iw, f, k)
+            sa += lam[k] * work[EPA_ROW + EPA_PA + v, c]
+            sb += lam[k] * work[EPA_ROW + EPA_PB + v, c]
+        out[OUT_POINT_A + c] = sa
+        out[OUT_POINT_B + c] = sb
+    g0 = out[OUT_POINT_B] - out[OUT_POINT_A]
+    g1 = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
+    g2 = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
+    gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+    if gn > NOISE_REL * size:
+        out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = g0 / gn, g1 / gn, g2 / gn
+    else:
+        row = EPA_ROW + EPA_PLANES + f
+        out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = work[row, 0], work[row, 1], work[row, 2]
+
+
 # ------------------------------------------------------------------------------------------
 # the algorithm
 # ------------------------------------------------------------------------------------------
@@ -676,7 +720,11 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
     """Grow the polytope of epa_start (nv vertices, top face slots, interior point c) on the supports
     of cores A and B until the bounds upper (sd <= upper) and lower close, from the given ones.
 
-    Returns (outcome, closed, upper, lower, iterations, nv, top). EPA_INSIDE: the result
+    While the origin lies outside P, the distance to the face it lies farthest beyond bounds sd from
+    above too (P lies in D), so that a descent stalled within about tol_abs of touching (a smooth
+    body's) is settled from either side.
+
+    Returns (outcome, closed, upper, lower, iterations, nv, top). EPA_RESULT: the result
     (distance = upper, witness points, normal, bounds, status: FAILED if not closed) is in out,
     A's frame, margins not included. EPA_OUTSIDE: out's normal is the outward normal of the face
     the origin lies beyond; nothing else is written."""
@@ -685,10 +733,18 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
     closed = False
     stop = STOP_CLOSED
     f, off = _least_face(work, iw, top)
+    near = False  # whether upper is the distance to P (the origin outside it), witnesses in out
     while True:
         f, off = _least_face(work, iw, top)
         if off >= 0.0:
             upper = min(upper, -off)
+            near = False
+        else:
+            d = _face_distance(work, iw, f)
+            if d < upper:
+                upper = d
+                near = True
+                _near_witness(work, iw, f, size, out)
         if bounds_closed(upper, lower, tol_abs, tol_rel):
             closed = True
             break
@@ -718,17 +774,20 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
             break
         nv += 1
     work[EPA_ROW + EPA_TMP, 3] = STOP_CLOSED if closed else stop
-    if off < 0.0:
+    if off < 0.0 and not near:
         row = EPA_ROW + EPA_PLANES + f
         out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = work[row, 0], work[row, 1], work[row, 2]
         return EPA_OUTSIDE, closed, upper, lower, it, nv, top
-    _witness(work, iw, f, out)
+    if not near:
+        _witness(work, iw, f, out)
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper
     out[OUT_LOWER] = min(lower, upper)  # rounding may cross them by an ulp
     out[OUT_ITERATIONS] = it
-    out[OUT_STATUS] = (TOUCHING if upper >= -tol_abs else OVERLAPPING) if closed else FAILED
-    return EPA_INSIDE, closed, upper, lower, it, nv, top
+    out[OUT_STATUS] = FAILED
+    if closed:
+        out[OUT_STATUS] = OVERLAPPING if upper < -tol_abs else (TOUCHING if upper <= tol_abs else SEPARATED)
+    return EPA_RESULT, closed, upper, lower, it, nv, top
 
 
 @kernel
@@ -741,7 +800,7 @@ def epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, k, SW, SPA, SP
     upper0: the GJK's upper bound on sd (0 if it proved overlap, else its distance); lower0: a known
     lower bound (-inf if none). warm: int64 (2,) support features (in/out). work, iw: the query's
     scratch. Returns (outcome, closed, upper, lower, iterations): closed when the bounds met the
-    tolerance. EPA_INSIDE and EPA_OUTSIDE: see epa_run. EPA_FLAT: D has no tetrahedron; out's
+    tolerance. EPA_RESULT and EPA_OUTSIDE: see epa_run. EPA_FLAT: D has no tetrahedron; out's
     normal is one across it (NaN: any direction).
     """
     nv, top, c0, c1, c2, low = epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw, out)

@@ -6,7 +6,8 @@ gjk.EPA_ROW and ``iwork`` entries from gjk.EPA_IOFF.
 
 Float rows (4 columns): the polytope's vertices w = a - b (x, y, z), their points of A and of B,
 then one plane per face slot (unit normal, offset), the planes of an expansion's new faces before
-they are made, then three rows of support scratch.
+they are made, then three rows of support scratch, then five for the nearest point of a face to an origin outside P
+(its corners, weights, and a row of scratch).
 Ints: the count of free face slots, the count of expansions, then per face its corners (3), its neighbours (3: across the
 edge from corner k to corner k + 1), an alive flag and a visit stamp; the free slots; the horizon
 of an expansion (4 per edge: from, to, outside face, that face's edge); the walk's stack (3 per
@@ -22,7 +23,8 @@ EPA_W, EPA_PA, EPA_PB = 0, EPA_MAX_VERTICES, 2 * EPA_MAX_VERTICES
 EPA_PLANES = 3 * EPA_MAX_VERTICES
 EPA_FAN = EPA_PLANES + EPA_MAX_FACES
 EPA_TMP = EPA_FAN + EPA_MAX_FACES
-EPA_FLOAT_ROWS = EPA_TMP + 3
+EPA_NEAR = EPA_TMP + 3  # a face's corners (3 rows), the weights of its point nearest the origin, scratch
+EPA_FLOAT_ROWS = EPA_NEAR + 5
 
 # ints
 EPA_NFREE = 0

@@ -56,7 +56,7 @@ from spq.kernels.gjk import (
 from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_pair
-from spq.kernels.epa import EPA_INSIDE, bounds_closed, epa, epa_run, epa_start
+from spq.kernels.epa import EPA_RESULT, bounds_closed, epa, epa_run, epa_start
 from spq.kernels.epa_layout import EPA_TMP
 from spq.kernels.signed import (
     HULL_CONTINUED,
@@ -866,6 +866,14 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
                                      tol_rel, max_iter, warm, work, scratch, fscratch, False, out, False, scratch)
             if used >= 0:
                 return _done(out, used + extra, dir_io)
+            if signed:
+                # within about tol_abs of touching the separated certificate gives up (its slab must
+                # be positive), while the small balls' bounds hold for either sign while |sd| < r
+                used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -v0 / n, -v1 / n, -v2 / n, tol_abs,
+                                         tol_rel, max_iter, warm, work, scratch, fscratch, False, out, True,
+                                         iwork[WARM_SIZE:EPA_IOFF])
+                if used >= 0:
+                    return _done(out, used + extra, dir_io)
             dir_io[0], dir_io[1], dir_io[2] = -v0, -v1, -v2
     else:
         if dir_io[0] == 0.0 and dir_io[1] == 0.0 and dir_io[2] == 0.0:
@@ -1010,7 +1018,7 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
                                                              max_iter, nv, top, c0, c1, c2, upper0, low, warm, work,
                                                              iwork, out)
         eit += more
-        if outcome == EPA_INSIDE:
+        if outcome == EPA_RESULT:
             # the hulls' witness points, pushed out by the radii, and their normal
             upper = upper - grow
             n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
@@ -1037,7 +1045,7 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
                                                                  max_iter, nv, top, c0, c1, c2, math.inf, low, warm,
                                                                  work, iwork, out)
             eit += more
-            if outcome == EPA_INSIDE:
+            if outcome == EPA_RESULT:
                 work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CONTINUED
                 out[OUT_ITERATIONS] = it + eit
                 add_margins(mA, mB, tol_abs, out)
@@ -1049,7 +1057,7 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
                                             work[20:22], math.inf, -math.inf, warm, work, iwork, out)
     eit += more
     work[EPA_ROW + EPA_TMP + 1, 3] = HULL_RESTARTED
-    if outcome != EPA_INSIDE:
+    if outcome != EPA_RESULT:
         # |sd| <= tol_abs with the origin outside the polytope (or no tetrahedron): the supports
         # along the normal found, reported as failed unless the bounds closed
         set_result(upper, low, it + eit, tol_abs, out)

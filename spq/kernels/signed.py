@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 
-from spq.kernels.epa import EPA_FLAT, EPA_INSIDE, epa
+from spq.kernels.epa import EPA_FLAT, EPA_RESULT, epa
 from spq.kernels.gjk import (
     FAILED,
     OUT_DISTANCE,
@@ -111,12 +111,14 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
         d0, d1, d2 = d0 / dn, d1 / dn, d2 / dn
     else:
         d0, d1, d2 = 1.0, 0.0, 0.0
-    if status == OVERLAPPING or status == TOUCHING:
+    if status == OVERLAPPING or status == TOUCHING or (status == FAILED and k > 0):
+        # a descent that stalled (a smooth body within about tol_abs of touching) hands its simplex
+        # on too: the polytope settles the side of the boundary the origin is on
         upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
-        lower0 = lower if (status == TOUCHING and lower > 0.0) else -math.inf
+        lower0 = lower if (status != OVERLAPPING and lower > 0.0) else -math.inf
         outcome, closed, upper, low, eit = epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, k, work[0:4],
                                                PA, PB, work[20:22], upper0, lower0, warm, work, iwork, out)
-        if outcome == EPA_INSIDE:
+        if outcome == EPA_RESULT:
             out[OUT_ITERATIONS] = it + eit
         else:
             # the origin is outside the polytope, or D is flat: the descent's points stand, with the
@@ -127,7 +129,7 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
             elif outcome == EPA_FLAT and n0 * d0 + n1 * d1 + n2 * d2 < 0.0:
                 n0, n1, n2 = -n0, -n1, -n2
             descent_result(TOUCHING, k, lam, PA, PB, low, it + eit, tol_abs, n0, n1, n2, out)
-            if outcome != EPA_FLAT and not closed:
+            if not closed and (outcome != EPA_FLAT or status == FAILED):
                 out[OUT_STATUS] = FAILED
     else:
         descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
