@@ -178,6 +178,7 @@ def robot_section(out: Path) -> Section:
     jumps = {(r.policy, r.track): int(r.gradient_jumps_same_pair) for r in cont.itertuples()}
     residual = {(r.policy, r.track): r.largest_residual_after_bisection for r in cont.itertuples()}
     closest = [(p, t) for p, t in jumps if t == "closest pair"]
+    through = [r for r in cont.itertuples() if str(r.track).startswith("through contact")]
     paragraphs = [
         f"Every non-adjacent pair of {fk.robot} ({int(auto.pairs)} pairs; auto policy: {auto.pairs_by_bv}) per "
         "configuration, in one compiled call (forward kinematics included). Forward kinematics against pybullet's "
@@ -198,6 +199,13 @@ def robot_section(out: Path) -> Section:
         "Gradient jumps along the trajectory (closest pair unchanged, confirmed by bisection to 1/1024 of a step): "
         + "; ".join(f"{p} {jumps[(p, t)]} (largest residual {residual[(p, t)]:.2g})" for p, t in closest) + ".",
     ]
+    if through:
+        paragraphs.append(
+            "Through contact (signed distances along the coarser trajectory; per policy the pair that enters and "
+            "leaves contact most often, with an STP-BV never deeper than r): "
+            + "; ".join(f"{r.policy} {r.track[len('through contact: '):]}: {int(r.contact_crossings)} contact "
+                        f"crossings, deepest {r.deepest_m:.2g} m, {int(r.gradient_jumps_same_pair)} gradient jumps"
+                        for r in through) + ".")
     charts = [
         Chart(out / "robot_engines.png", "All-pairs time per configuration (ms, log scale): spq for each policy, cold "
               "on random configurations and warm-started along the trajectory, beside coal and python-fcl on the same "
@@ -207,7 +215,8 @@ def robot_section(out: Path) -> Section:
               "(m/rad; grey lines where the closest pair changes), one pair's gradient norm, and that pair's gradient "
               "change per step relative to its norm (x: jumps that stay the same size when the step is bisected ten "
               "times). PCH-PCH gradients jump where witness points jump across a face; auto's change steeply but "
-              "continuously."),
+              "continuously. Bottom two panels: one pair's signed distance and its gradient norm through contact "
+              "(below zero: penetration depth)."),
         Chart(out / "robot_distance_matrix.png", "Distance (m) of every pair at one random posture, auto policy; "
               "white: skipped (adjacent bodies, and the diagonal); black squares: overlapping hulls."),
     ]

@@ -33,7 +33,7 @@ import pandas as pd
 
 from harness.bench import best_time
 from harness.robot_poses import random_configurations, smooth_trajectory
-from spq.kernels.gjk import OUT_DISTANCE, OUT_ITERATIONS, OUT_SIZE, OUT_STATUS, OVERLAPPING, SEPARATED
+from spq.kernels.gjk import FAILED, OUT_DISTANCE, OUT_ITERATIONS, OUT_SIZE, OUT_STATUS, OVERLAPPING, SEPARATED
 from spq.scene import Scene
 
 JUMP_CANDIDATES = 20  # the steps with the largest relative gradient change, tested by bisection
@@ -208,38 +208,39 @@ def engine_table(config: RobotBenchConfig, scene: Scene, qs: np.ndarray, spq_out
     return pd.DataFrame(rows)
 
 
-def gradient_track(scene: Scene, trajectory: np.ndarray, pairs: np.ndarray) -> dict:
+def gradient_track(scene: Scene, trajectory: np.ndarray, pairs: np.ndarray, signed: bool = False) -> dict:
     """Along the trajectory (coherent), the closest of ``pairs`` at each step, its distance and its
-    distance gradient (steps, ndof) w.r.t. the joint values."""
+    distance gradient (steps, ndof) w.r.t. the joint values (signed: overlaps as minus their depth)."""
     scene.reset()
     steps = len(trajectory)
     closest = np.empty(steps, dtype=int)
     dmin = np.empty(steps)
     grads = np.empty((steps, scene.model.ndof))
     for k, q in enumerate(trajectory):
-        result = scene.distances(q, coherent=True)
+        result = scene.distances(q, coherent=True, signed=signed)
         i = pairs[np.argmin(result.distance[pairs])]
         closest[k], dmin[k] = i, result.distance[i]
         grads[k] = scene.distance_gradient(q, result, int(i))
     return {"closest": closest, "distance": dmin, "gradient": grads}
 
 
-def pair_gradient(scene: Scene, q: np.ndarray, pair: int) -> np.ndarray:
+def pair_gradient(scene: Scene, q: np.ndarray, pair: int, signed: bool = False) -> np.ndarray:
     """Distance gradient (ndof,) of one pair at q, from a cold query."""
-    return scene.distance_gradient(q, scene.distances(q, coherent=False), pair)
+    return scene.distance_gradient(q, scene.distances(q, coherent=False, signed=signed), pair)
 
 
-def bisect_change(scene: Scene, q0: np.ndarray, q1: np.ndarray, pair: int, levels: int = BISECTIONS) -> float:
+def bisect_change(scene: Scene, q0: np.ndarray, q1: np.ndarray, pair: int, levels: int = BISECTIONS,
+                  signed: bool = False) -> float:
     """The part of the gradient change between q0 and q1 left in a 2^-levels sub-interval, after
     following the larger half's change at each level: near 1 for a jump, near 2^-levels for a
     continuous gradient."""
-    g0, g1 = pair_gradient(scene, q0, pair), pair_gradient(scene, q1, pair)
+    g0, g1 = pair_gradient(scene, q0, pair, signed), pair_gradient(scene, q1, pair, signed)
     total = np.linalg.norm(g1 - g0)
     if total == 0.0:
         return 0.0
     for _ in range(levels):
         qm = 0.5 * (q0 + q1)
-        gm = pair_gradient(scene, qm, pair)
+        gm = pair_gradient(scene, qm, pair, signed)
         if np.linalg.norm(gm - g0) >= np.linalg.norm(g1 - gm):
             q1, g1 = qm, gm
         else:
@@ -247,7 +248,7 @@ def bisect_change(scene: Scene, q0: np.ndarray, q1: np.ndarray, pair: int, level
     return float(np.linalg.norm(g1 - g0) / total)
 
 
-def gradient_jumps(scene: Scene, trajectory: np.ndarray, track: dict) -> dict:
+def gradient_jumps(scene: Scene, trajectory: np.ndarray, track: dict, signed: bool = False) -> dict:
     """Jump statistics of a gradient track. Steps where the closest pair changes are counted apart.
     Among the others, the JUMP_CANDIDATES largest relative changes (|change| / |gradient|) are bisected
     (:func:`bisect_change`); a jump is one whose change stays over JUMP_RESIDUAL of itself."""
@@ -258,8 +259,8 @@ def gradient_jumps(scene: Scene, trajectory: np.ndarray, track: dict) -> dict:
     switch = track["closest"][1:] != track["closest"][:-1]
     same = np.flatnonzero(~switch)
     candidates = same[np.argsort(-relative[same])[:JUMP_CANDIDATES]]
-    residual = np.array([bisect_change(scene, trajectory[k], trajectory[k + 1], int(track["closest"][k]))
-                         for k in candidates])
+    residual = np.array([bisect_change(scene, trajectory[k], trajectory[k + 1], int(track["closest"][k]),
+                                       signed=signed) for k in candidates])
     jumps = np.sort(candidates[residual > JUMP_RESIDUAL]) if len(candidates) else candidates
     return {"closest_pair_switches": int(switch.sum()),
             "median_relative_change": float(np.median(relative[same])) if same.size else np.nan,
@@ -299,6 +300,39 @@ def continuity_table(scenes: dict, trajectory: np.ndarray, policies=("auto", "pc
     return pd.DataFrame(rows), tracks
 
 
+def contact_track(scenes: dict, trajectory: np.ndarray, r: float, policies=("auto", "pch")) -> tuple[list, dict]:
+    """Per policy, the signed-distance track of the pair that enters and leaves contact most often
+    along the trajectory, among the pairs that never fail and, with an STP-BV on a side, are never
+    deeper than its small radius r (down to which its penetration depth is C1; deeper, the nearest
+    boundary point of the Minkowski difference may switch for any bodies): (table rows, tracks per
+    policy); a policy whose pairs never cross contact has neither."""
+    rows, tracks = [], {}
+    for p in policies:
+        out = scenes[p].distances_many(trajectory, coherent=False, signed=True)
+        sd = out[:, :, OUT_DISTANCE]
+        ok = (out[:, :, OUT_STATUS] != FAILED).all(axis=0)
+        if p != "pch":
+            ok &= sd.min(axis=0) > -r
+        crossings = np.where(ok, (np.diff(np.sign(sd), axis=0) != 0).sum(axis=0), 0)
+        if crossings.max() == 0:
+            continue
+        pair = int(np.argmax(crossings))
+        names = scenes[p].pair_names[pair]
+        tr = gradient_track(scenes[p], trajectory, np.array([pair]), signed=True)
+        tr.update(gradient_jumps(scenes[p], trajectory, tr, signed=True))
+        tr["name"] = f"{names[0]} - {names[1]}"
+        tracks[p] = tr
+        in_contact = tr["distance"] < 0.0
+        rows.append({"policy": p, "track": f"through contact: {tr['name']}", "pairs_tracked": 1,
+                     "steps": len(trajectory), "contact_crossings": int((in_contact[1:] != in_contact[:-1]).sum()),
+                     "deepest_m": float(tr["distance"].min()),
+                     **{k: v for k, v in tr.items() if k in ("closest_pair_switches", "median_relative_change",
+                                                             "max_relative_change_same_pair",
+                                                             "largest_residual_after_bisection",
+                                                             "gradient_jumps_same_pair")}})
+    return rows, tracks
+
+
 def plot_distance_matrix(scene: Scene, q: np.ndarray, path: Path, policy: str) -> None:
     """Heat map of every pair's distance at one posture; skipped pairs blank, overlaps black."""
     from harness.report.charts import pyplot, save_figure
@@ -323,13 +357,21 @@ def plot_distance_matrix(scene: Scene, q: np.ndarray, path: Path, policy: str) -
     save_figure(fig, path, f"{scene.model.name}: pair distances at one random posture ({policy}; blank = skipped)")
 
 
-def plot_trajectory(tracks: dict, path: Path) -> None:
+def plot_trajectory(tracks: dict, path: Path, contact: dict | None = None) -> None:
     """Closest-pair distance and gradient norm, then one fixed pair's gradient norm and its change per
-    step, per policy."""
+    step, per policy; below, on its own trajectory, a pair's signed distance through contact and its
+    gradient norm (contact_track), when one was found."""
     from harness.report.charts import pyplot, save_figure
 
     plt = pyplot()
-    fig, axes = plt.subplots(4, 1, figsize=(9, 11), sharex=True)
+    if contact:
+        fig, all_axes = plt.subplots(6, 1, figsize=(9, 15))
+        axes, below = list(all_axes[:4]), list(all_axes[4:])
+        for ax in axes[1:]:
+            ax.sharex(axes[0])
+        below[1].sharex(below[0])
+    else:
+        fig, axes = plt.subplots(4, 1, figsize=(9, 11), sharex=True)
     colours = {"auto": "tab:blue", "pch": "tab:red", "stp-both": "tab:green"}
     labels = {"auto": "auto (STP-BV on one side)", "pch": "PCH-PCH"}
     for p, tr in tracks.items():
@@ -352,6 +394,19 @@ def plot_trajectory(tracks: dict, path: Path) -> None:
     axes[3].set_ylabel("|gradient change| per step\n(x: jumps)")
     axes[3].set_xlabel("trajectory step")
     axes[0].legend(fontsize=8)
+    if contact:
+        for p, tr in contact.items():
+            steps = np.arange(len(tr["distance"]))
+            colour, label = colours.get(p), labels.get(p, p)
+            below[0].plot(steps, tr["distance"], color=colour, lw=1, label=f"{label}: {tr['name']}")
+            below[1].plot(steps, np.linalg.norm(tr["gradient"], axis=1), color=colour, lw=1, label=label)
+            jumps = tr["jump_steps"]
+            below[1].scatter(jumps, np.linalg.norm(tr["gradient"][jumps], axis=1), color=colour, s=14, marker="x")
+        below[0].axhline(0.0, color="k", lw=0.6)
+        below[0].set_ylabel("signed distance (m)\nof a pair through contact")
+        below[1].set_ylabel("|gradient| (m/rad)\n(x: jumps)")
+        below[1].set_xlabel("step of the coarser trajectory (through contact)")
+        below[0].legend(fontsize=8)
     save_figure(fig, path, "Minimum distance and its gradient along a smooth trajectory")
 
 
@@ -419,8 +474,10 @@ def run(config: RobotBenchConfig, out_dir: Path, progress: bool = True) -> dict:
     # the continuity track: the first 1/CONTINUITY_ZOOM of a trajectory sampled CONTINUITY_ZOOM times finer
     fine = smooth_trajectory(base.model, config.steps * CONTINUITY_ZOOM, config.seed)[:config.steps]
     continuity, tracks = continuity_table(scenes, fine)
+    contact_rows, contact = contact_track(scenes, trajectory, config.r)
+    continuity = pd.concat([continuity, pd.DataFrame(contact_rows)], ignore_index=True)
     plot_distance_matrix(scenes["auto"], randoms[0], out_dir / "robot_distance_matrix.png", "auto")
-    plot_trajectory(tracks, out_dir / "robot_trajectory.png")
+    plot_trajectory(tracks, out_dir / "robot_trajectory.png", contact)
     plot_engines(table, engines, out_dir / "robot_engines.png")
     return {"scene": table, "engines": engines, "continuity": continuity, "kinematics": kinematics, "signed": signed,
             "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name}
