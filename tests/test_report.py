@@ -39,6 +39,8 @@ def test_the_reported_figures_are_sane(report_dir):
     assert len(table1) == 6 and (table1.failed == 0).all()
     summary = pd.read_csv(report_dir / "continuity_summary.csv")
     assert len(summary) > 0
+    depth = pd.read_csv(report_dir / "depth_oracle_summary.csv")
+    assert len(depth) == 16 and (depth.max_abs_error_m <= 1e-8).all() and (depth.contained_pct == 100).all()
 
 
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.stp_oracle import (
+from harness.stp_oracle import (
     brute_force_centres_many,
     brute_force_support,
     brute_force_support_many,
