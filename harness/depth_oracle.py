@@ -37,7 +37,7 @@ import pandas as pd
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from harness.stp_oracle import brute_force_support_many
+from harness.stp_oracle import BruteForceSTP
 
 STARTS = 400  # Fibonacci directions searched before polishing
 POLISH = 4  # SLSQP runs from the best distinct starts
@@ -84,6 +84,7 @@ class Body:
     kind: str
     data: tuple
     offset: np.ndarray
+    _stp: object = None  # an STP-BV's brute-force support, built on first use
 
     def local_support(self, U):
         if self.kind == "PCH":
@@ -92,8 +93,9 @@ class Body:
             i = np.argmax(proj, axis=1)
             return v[i], proj[np.arange(len(U)), i]
         if self.kind == "STP":
-            pts, r, R = self.data
-            s = brute_force_support_many(pts, r, R, U)
+            if self._stp is None:
+                self._stp = BruteForceSTP(*self.data)
+            s = self._stp.support_many(U)
             return s, np.einsum("ij,ij->i", s, U)
         if self.kind == "CSE":
             return superellipsoid_support(*self.data, U)

@@ -165,8 +165,7 @@ def depth_section(out: Path) -> Section:
         "polish; harness/depth_oracle.py), on overlaps of 1e-4 to 1e-1 times the body size.",
         f"Largest |spq - oracle| over {int(summary.poses.sum())} poses: {worst.max_abs_error_m:.2g} m ({worst.pair}, "
         f"{worst.bucket}); spq's certified interval holds the oracle's value in {summary.contained_pct.min():.4g}% "
-        f"of the poses of the worst bucket; spq failed {int(summary.spq_failed.sum())} times. The STP-BV pairs run "
-        "fewer poses: the brute-force support costs about a second per pose."]
+        f"of the poses of the worst bucket; spq failed {int(summary.spq_failed.sum())} times."]
     return Section("Penetration depth against an independent oracle", paragraphs, [("Per pair and bucket", summary)])
 
 
@@ -267,7 +266,7 @@ SUITES = [
     Suite("rtradeoff", lambda q: ["rtradeoff"] + (["--quick"] if q else []), rtradeoff_section),
     Suite("stability", lambda q: ["stability", "--quiet"] + (["--quick"] if q else []), stability_section),
     Suite("depth", lambda q: ["depth", "--quiet"] + (["--per-bucket", "3", "--stp-per-bucket", "1"] if q else
-                                                     ["--per-bucket", "100", "--stp-per-bucket", "20"]),
+                                                     ["--per-bucket", "100"]),
           depth_section),
     Suite("bench robot", lambda q: ["bench", "robot", "--quiet", "--robot", report_robot()] + (["--configs", "40", "--steps", "200", "--repeats",
                                                                      "1", "--engine-configs", "10"] if q else []),

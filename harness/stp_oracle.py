@@ -117,6 +117,44 @@ def brute_force_centres_many(points, rho: float, V) -> np.ndarray:
     return best
 
 
+class BruteForceSTP:
+    """The brute-force support of one STP-BV with the direction-free candidates (the circles where two
+    spheres meet, the feasible points where three meet) computed once, and every direction of a call
+    handled in one vectorised pass: the same candidates and choice as brute_force_centres_many."""
+
+    def __init__(self, points, r: float, R: float):
+        self.x, self.rho = _check(points, r, R)
+        self.R = float(R)
+        self.m, self.e, self.a = _pair_circles(self.x, self.rho)
+        tri = _triple_points(self.x, self.rho)
+        self.tri = tri[_feasible(tri, self.x, self.rho)] if len(tri) else tri
+        self.lim = (self.rho + FEAS_REL * (1.0 + self.rho)) ** 2
+
+    def support_many(self, V) -> np.ndarray:
+        """Support points (m, 3) along the rows of V (m, 3; non-zero)."""
+        V = np.asarray(V, dtype=float).reshape(-1, 3)
+        nv = np.linalg.norm(V, axis=1)
+        if not (nv > 0).all() or not np.isfinite(V).all():
+            raise ValueError("directions must be finite and non-zero")
+        U = V / nv[:, None]
+        cand = self.x[None] - self.rho * U[:, None, :]  # (a): (q, n, 3)
+        if len(self.m):
+            cand = np.concatenate([cand, _circle_minimisers(self.m, self.e, self.a, U)], axis=1)  # (b)
+        d2 = ((cand[:, :, None, :] - self.x[None, None]) ** 2).sum(axis=-1).max(axis=-1)
+        score = np.where(d2 <= self.lim, np.einsum("qkc,qc->qk", cand, U), np.inf)
+        best = cand[np.arange(len(U)), np.argmin(score, axis=1)]
+        best_score = score.min(axis=1)
+        if len(self.tri):  # (c), feasible already
+            ts = U @ self.tri.T
+            j = np.argmin(ts, axis=1)
+            better = ts[np.arange(len(U)), j] < best_score
+            best = np.where(better[:, None], self.tri[j], best)
+            best_score = np.minimum(best_score, ts[np.arange(len(U)), j])
+        if not np.isfinite(best_score).all():
+            raise ValueError("no feasible candidate: Q is empty (rho below the enclosing-ball radius)")
+        return best + self.R * U
+
+
 def brute_force_support_many(points, r: float, R: float, V) -> np.ndarray:
     """Support points s(v) = c*(v) + R v/|v| of the STP-BV of ``points`` for each row of V (m, 3); (m, 3)."""
     x, rho = _check(points, r, R)

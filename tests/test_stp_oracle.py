@@ -202,3 +202,13 @@ def test_oracle_finds_the_files_face_centres(shared_datasets, name, tol):
         assert np.abs(dist - t.rho).max() <= 1e-12 * t.R
     # (the sch-core samples print 6 digits: after rounding a few of their faces, 2 of 80 in
     # sample_stpbv1, are no longer exact faces of the rounded points' ball hull, by ~1e-8)
+
+
+def test_the_vectorised_brute_force_chooses_as_the_loop_does():
+    from harness.stp_oracle import BruteForceSTP
+
+    rng = np.random.default_rng(3)
+    pts = rng.normal(size=(12, 3)) * 0.05
+    V = rng.normal(size=(50, 3))
+    np.testing.assert_allclose(BruteForceSTP(pts, 0.01, 0.5).support_many(V),
+                               brute_force_support_many(pts, 0.01, 0.5, V), atol=1e-15)
