@@ -106,6 +106,10 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
     shapes = _shapes(config, load_object)
     poses_a, poses_b = random_poses(config.poses, config.seed, config.translation_range)
     engines = available_engines(config.engines)
+    if "spq" in engines:  # the plain rows are spq unsigned; _signed_modes adds the signed ones
+        from harness.engines.spq_engine import SpqEngine
+
+        engines["spq"] = SpqEngine(signed=False)
     runs = [(p, name) for p in config.pairs for name in engines if p == "PCH-PCH" or name == "spq"]
     prepared, modes = [], {}
     try:

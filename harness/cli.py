@@ -50,6 +50,16 @@ def cmd_crosscheck(args) -> int:
     write_table(summary, out, "crosscheck_summary", "Cross-check per engine and bucket", meta, notes)
     write_table(totals, out, "crosscheck_engines", "Cross-check per engine", meta, notes)
     write_table(worst, out, "crosscheck_worst", "Worst cases per engine (largest absolute errors)", meta)
+    depth, depth_worst = cc.depth_summary(table), cc.depth_worst_cases(table)
+    depth_notes = ("Signed distance (minus the penetration depth when overlapping) against the exact reference's, on "
+                   "the touching and overlap buckets: depth error = the engine's raw signed distance - the "
+                   "reference's (m). sign_errors: on the wrong side of the +-1e-9 m band. Witness checks on the "
+                   "overlaps: | |p_B - p_A| - depth | and the points' distance from their hulls' surfaces. "
+                   "certificate_holds_pct: spq's [lower, upper] holds the reference. coal and python-fcl run with "
+                   "signed distance on, pybullet with margin 0 ('bullet') and its default 1 mm margin per shape "
+                   "('bullet-margin', a 2 mm bias); spq with signed=True.")
+    write_table(depth, out, "crosscheck_depth", "Penetration depth per engine and bucket", meta, depth_notes)
+    write_table(depth_worst, out, "crosscheck_depth_worst", "Worst depth errors per engine", meta, depth_notes)
     if args.agreement_poses > 0:
         agree = cc.agreement(config.objects, args.agreement_poses, args.seed, load_object, progress=not args.quiet)
         write_table(agree, out, "crosscheck_agreement", "spq against coal on random poses", meta,
@@ -70,6 +80,8 @@ def cmd_crosscheck(args) -> int:
                    "failures"]])
     print("\nWorst cases:")
     _print(worst)
+    print("\nPenetration depth (signed distance against the reference's; touching and overlap buckets):")
+    _print(depth)
     print(f"\nwrote {out}/crosscheck.csv.gz, crosscheck_summary.*, crosscheck_engines.*, crosscheck_worst.* "
           f"in {time.perf_counter() - start:.0f} s")
     return 0
@@ -338,6 +350,7 @@ def cmd_stability(args) -> int:
     fcl_gap = st.fcl_gap_summary(table)
     meta = run_metadata(command="spq stability", seed=args.seed, quick=bool(args.quick),
                         engine_tolerances={k: list(v) for k, v in st.ENGINE_TOL.items()},
+                        engine_depth_tolerances={k: list(v) for k, v in st.ENGINE_DEPTH_TOL.items()},
                         ambiguous_band_m=st.AMBIGUOUS_BAND, links=list(config.links),
                         queries=len(table) + len(sweep), seconds=round(time.perf_counter() - start, 1))
     out = Path(args.out)
@@ -346,7 +359,10 @@ def cmd_stability(args) -> int:
              "separated poses. verdict: ok (|error| <= allowed_error = tol_abs + tol_rel * d_ref + 64 eps * extent, "
              "and a status consistent with the reference outside the contact band max(1e-9 m, tol_abs)), wrong, "
              "failed (status failed). Tolerances (abs m, rel): " +
-             ", ".join(f"{k} {a:g}/{r:g}" for k, (a, r) in st.ENGINE_TOL.items()) + ".")
+             ", ".join(f"{k} {a:g}/{r:g}" for k, (a, r) in st.ENGINE_TOL.items()) + ". depth_verdict, where the "
+             "reference overlaps or touches: the engine's raw signed distance against the reference's within its "
+             "depth tolerance (" + ", ".join(f"{k} {a:g}/{r:g}" for k, (a, r) in st.ENGINE_DEPTH_TOL.items())
+             + ") and on the right side of the 1e-9 m band; 'no depth' for an engine that gives none.")
     write_table(table, out, "stability", "Stability cases (detail)", meta, notes)
     if not sweep.empty:
         sweep.to_csv(out / "stability_coal_dualitygap_detail.csv", index=False)
@@ -361,6 +377,9 @@ def cmd_stability(args) -> int:
         sub = families[families.family == fam]
         if len(sub):
             text += [markdown_table(sub.drop(columns=["family"])), ""]
+    depth_worst = st.depth_worst_cases(table)
+    write_table(depth_worst, out, "stability_depth_worst", "Largest depth errors per engine and family", meta, notes)
+    text += ["## Penetration depth: worst cases per engine and family", "", markdown_table(depth_worst), ""]
     if len(fcl_gap):
         text += ["## FCL 3.0 box gap", "", markdown_table(fcl_gap), ""]
     if not sweep.empty:

@@ -56,8 +56,10 @@ def status_verdict(ref_signed: np.ndarray, status: np.ndarray) -> np.ndarray:
     return verdict
 
 
-def score(suite: PoseSuite, engine_name: str, result, a, b) -> pd.DataFrame:
-    """Per-query rows for one engine's answers on one suite."""
+def score(suite: PoseSuite, engine_name: str, result, a, b, gives_depth: bool = False, bounds=None) -> pd.DataFrame:
+    """Per-query rows for one engine's answers on one suite. gives_depth: the engine's raw_distance is
+    a signed distance (minus the depth when overlapping), scored on the touching and overlap buckets
+    against the reference's signed distance; bounds: its certified (lower, upper) arrays, if any."""
     dist = np.asarray(result.distance, dtype=np.float64)
     sep = suite.ref_signed > AMBIGUOUS_BAND
     err = dist - suite.ref_distance
@@ -68,6 +70,17 @@ def score(suite: PoseSuite, engine_name: str, result, a, b) -> pd.DataFrame:
     if ok.any():
         off_a[ok] = _surface_offset(a, suite.pose_a[ok], result.point_a[ok])
         off_b[ok] = _surface_offset(b, suite.pose_b[ok], result.point_b[ok])
+    raw = np.asarray(result.raw_distance, dtype=np.float64)
+    signed_rows = (np.asarray(suite.target) <= 0.0) & gives_depth  # the touching and overlap buckets
+    depth_err = np.where(signed_rows, raw - suite.ref_signed, np.nan)
+    sign_error = signed_rows & (((suite.ref_signed < -AMBIGUOUS_BAND) & (raw >= 0.0))
+                                | ((suite.ref_signed > AMBIGUOUS_BAND) & (raw < 0.0)))
+    over = signed_rows & ok & (raw < 0.0)
+    holds = np.full(len(dist), np.nan)
+    if bounds is not None:
+        lo, up = (np.asarray(x, dtype=np.float64) for x in bounds)
+        slack = 4 * np.finfo(float).eps * np.maximum(np.abs(suite.ref_signed), 1.0)
+        holds = np.where(signed_rows, ((lo <= suite.ref_signed + slack) & (suite.ref_signed - slack <= up)), np.nan)
     return pd.DataFrame({
         "pair": suite.pair_name,
         "engine": engine_name,
@@ -84,6 +97,14 @@ def score(suite: PoseSuite, engine_name: str, result, a, b) -> pd.DataFrame:
         "witness_gap_error": np.where(sep & ok, np.abs(gap - dist), np.nan),
         "witness_off_surface": np.where(sep & ok, np.maximum(off_a, off_b), np.nan),
         "verdict": status_verdict(suite.ref_signed, np.asarray(result.status)),
+        "gives_depth": bool(gives_depth),
+        "raw_distance": raw,
+        "depth_error": depth_err,
+        "depth_abs_error": np.abs(depth_err),
+        "depth_sign_error": sign_error,
+        "depth_witness_gap_error": np.where(over, np.abs(gap + raw), np.nan),
+        "depth_witness_off_surface": np.where(over, np.maximum(off_a, off_b), np.nan),
+        "certificate_holds": holds,
     })
 
 
@@ -110,7 +131,8 @@ def run(config: CrosscheckConfig, load_object, progress: bool = True) -> pd.Data
                     result = prepared.query_many(suite.pose_a, suite.pose_b)
                 finally:
                     prepared.close()
-                frames.append(score(suite, name, result, a, b))
+                frames.append(score(suite, name, result, a, b, getattr(engine, "gives_depth", False),
+                                    getattr(prepared, "last_bounds", None)))
         bar.close()
     finally:
         for engine in engines.values():
@@ -151,6 +173,45 @@ def worst_cases(table: pd.DataFrame, k: int = 5) -> pd.DataFrame:
     idx = sep.groupby("engine", sort=False)["abs_error"].nlargest(k).index.get_level_values(-1)
     cols = ["engine", "pair", "bucket", "ref_distance", "distance", "abs_error", "rel_error", "status"]
     return sep.loc[idx, cols].reset_index(drop=True)
+
+
+DEPTH_BUCKETS = ("touching", "overlap-1e-4", "overlap-1e-3", "overlap-1e-2", "overlap-1e-1")
+
+
+def depth_summary(table: pd.DataFrame) -> pd.DataFrame:
+    """Per engine and bucket of DEPTH_BUCKETS: the signed distance (minus the penetration depth) against
+    the reference's: max and median |error| (m), sign errors (over/under the +-1e-9 m band on the
+    wrong side), witness checks on the overlaps (| |p_B - p_A| - depth |, points off their surfaces),
+    and for an engine with a certificate the share of poses whose interval holds the reference. An
+    engine without depth gets one row saying so."""
+    rows = []
+    for engine, t in table[table.bucket.isin(DEPTH_BUCKETS)].groupby("engine", sort=False):
+        if not t.gives_depth.iloc[0]:
+            rows.append({"engine": engine, "bucket": "all", "n": len(t), "depth": "no depth"})
+            continue
+        for bucket in DEPTH_BUCKETS:
+            b = t[t.bucket == bucket]
+            if b.empty:
+                continue
+            rows.append({"engine": engine, "bucket": bucket, "n": len(b), "depth": "yes",
+                         "max_abs_depth_error": b.depth_abs_error.max(),
+                         "median_abs_depth_error": b.depth_abs_error.median(),
+                         "mean_depth_error": b.depth_error.mean(),
+                         "sign_errors": int(b.depth_sign_error.sum()),
+                         "failures": int((b.verdict == "failed").sum()),
+                         "max_witness_gap_error": b.depth_witness_gap_error.max(),
+                         "max_witness_off_surface": b.depth_witness_off_surface.max(),
+                         "certificate_holds_pct": 100.0 * b.certificate_holds.mean()
+                         if b.certificate_holds.notna().any() else np.nan})
+    return pd.DataFrame(rows)
+
+
+def depth_worst_cases(table: pd.DataFrame, k: int = 5) -> pd.DataFrame:
+    """The k largest depth errors per engine (touching and overlap buckets)."""
+    t = table.dropna(subset=["depth_abs_error"])
+    idx = t.groupby("engine", sort=False)["depth_abs_error"].nlargest(k).index.get_level_values(-1)
+    cols = ["engine", "pair", "bucket", "ref_signed", "raw_distance", "depth_abs_error", "status"]
+    return t.loc[idx, cols].reset_index(drop=True)
 
 
 AGREEMENT_TOL = 1e-7  # m: spq and coal (gjk_tolerance 1e-8) must agree to this on separated poses

@@ -54,6 +54,21 @@ def crosscheck_section(out: Path) -> Section:
             f"{int(agree.over_tolerance.sum())} beyond 1e-7 m, {int(agree.status_disagreements.sum())} status "
             f"disagreements outside the contact band, {int(agree.spq_failed.sum())} spq failures.")
         tables.append(("spq against coal on random poses", agree))
+    if (out / "crosscheck_depth.csv").exists():
+        depth = _read(out, "crosscheck_depth.csv")
+        scored = depth[depth.depth == "yes"]
+        per = scored.groupby("engine", sort=False).agg(err=("max_abs_depth_error", "max"),
+                                                       sign=("sign_errors", "sum"), failed=("failures", "sum"))
+        spq_hold = scored[scored.engine == "spq"].certificate_holds_pct.min()
+        paragraphs.append(
+            "Penetration depth (touching and overlap buckets, each engine's signed distance against the reference's): "
+            + "; ".join(f"{e} largest error {r.err:.2g} m, {int(r.sign)} sign errors, {int(r.failed)} failures"
+                        for e, r in per.iterrows())
+            + (f"; spq's certified interval holds the reference in {spq_hold:.4g}% of the poses of its worst bucket"
+               if scored.engine.eq("spq").any() else "")
+            + "".join(f"; {e}: no depth" for e in depth[depth.depth == "no depth"].engine) + ".")
+        tables += [("Penetration depth per engine and bucket (m)", depth),
+                   ("Worst depth errors", _read(out, "crosscheck_depth_worst.csv"))]
     cols = ["engine", "n", "max_abs_error", "median_abs_error", "max_rel_error", "mean_signed_error",
             "max_witness_off_surface", "false_overlaps", "missed_overlaps", "failures"]
     return Section("Cross-check against the exact reference", paragraphs,
@@ -152,7 +167,18 @@ def stability_section(out: Path) -> Section:
         f"spq: {int(spq_row.ok)} ok, {int(spq_row.wrong)} wrong, {int(spq_row.failed)} failed (a failed status is spq "
         "declining to certify, never a wrong number). Details per family and the coal tolerance sweep: "
         "stability_summary.md and stability_coal_dualitygap.md beside this page."]
-    return Section("Stability where methods fail", paragraphs, [("Verdicts per engine", summary)])
+    if "depth_n" in summary:
+        paragraphs.append(
+            "Penetration depth where the reference overlaps or touches (every family, the pen_* ones included: "
+            "shallow 1e-12 to 1e-3 m, containment, parallel faces, scales, 1e4 m from the origin, degenerate GJK "
+            "simplices, long faces): " + "; ".join(
+                f"{r.engine} {int(r.depth_ok)} ok, {int(r.depth_wrong)} wrong, {int(r.depth_failed)} failed"
+                + (f", {int(r.no_depth)} without depth" if r.no_depth else "")
+                + f" (largest error {r.max_abs_depth_error:.2g} m)" for r in summary.itertuples()) + ".")
+    tables = [("Verdicts per engine", summary)]
+    if (out / "stability_depth_worst.csv").exists():
+        tables.append(("Largest depth errors per engine and family", _read(out, "stability_depth_worst.csv")))
+    return Section("Stability where methods fail", paragraphs, tables)
 
 
 def depth_section(out: Path) -> Section:

@@ -9,7 +9,13 @@ coal's DualityGap + Relative convergence criterion over gjk_tolerance (NOTES 6).
 Verdict per query: 'failed' (status failed), 'ok' (|distance - reference| within the engine's
 tolerance and a status consistent with the reference outside the contact band; inside the band
 |d_ref| <= max(1e-9 m, engine tolerance) any non-failed status with a distance within tolerance is
-ok), 'wrong' otherwise. Overlaps are scored on the status only (distance 0); depths are recorded.
+ok), 'wrong' otherwise. Overlaps are scored on the status there (distance 0); their depths separately:
+
+Depth verdict per query where the reference overlaps (or touches within the band): 'ok' when the
+engine's raw signed distance is the reference's within its depth tolerance (ENGINE_DEPTH_TOL), and on
+the same side of the +-1e-9 m band; 'wrong' otherwise; 'failed'; 'no depth' for an engine that gives
+none. The penetration families (pen_*) exist for these: shallow 1e-12 .. 1e-3 m, containment, parallel
+faces, scales, far from the origin, degenerate GJK simplices and long faces against a tiny depth.
 """
 
 from __future__ import annotations
@@ -36,6 +42,16 @@ ENGINE_TOL = {
     "coal": (1e-8, 1e-8),  # gjk_tolerance set by the adapter
     "bullet": (1e-6, 1e-4),  # NOTES 6: ~1e-4 relative on curved hulls with margin 0
     "bullet-margin": (2e-3 + 1e-6, 1e-4),  # 1 mm default margin per shape: 2 mm bias accepted
+}
+# (absolute m, relative) tolerance of each engine's penetration depth: spq's certificate; coal's
+# epa_tolerance (1e-6 by default); FCL's EPA (libccd, 1e-6, not exposed by python-fcl); Bullet's EPA
+# accuracy (1e-4, relative); the margin engine's 2 mm bias on top
+ENGINE_DEPTH_TOL = {
+    "spq": (spq.DEFAULT_TOL_ABS, spq.DEFAULT_TOL_REL),
+    "fcl": (1e-6, 1e-6),
+    "coal": (1e-6, 1e-6),
+    "bullet": (1e-6, 1e-4),
+    "bullet-margin": (2e-3 + 1e-6, 1e-4),
 }
 DUALITY_TOLERANCES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 DUALITY_TOLERANCES_QUICK = (1e-4, 1e-8, 1e-12)
@@ -168,6 +184,66 @@ def build_cases(config: StabilityConfig, load_object) -> list[Case]:
     return cases
 
 
+def penetration_cases(config: StabilityConfig, load_object) -> list[Case]:
+    """The penetration families (pen_*, see FAMILY_NOTES), scored on depth as well as status."""
+    rng = np.random.default_rng(config.seed + 3)
+    n = config.n
+    unit = box(1, 1, 1)
+    la, lb = (load_object(name) for name in config.links)
+    lname = f"{config.links[0]}|{config.links[1]}"
+    size = 0.5 * (la.bounding_radius() + lb.bounding_radius())
+    cases: list[Case] = []
+    for depth in (1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-3):
+        aligned = place(unit, unit, np.eye(3), np.eye(3), np.zeros(3), [1, 0, 0], -depth)
+        cases.append(Case("pen_shallow", "box|box face-face", depth, unit, unit, [aligned]))
+        cases.append(Case("pen_shallow", "box|box random", depth, unit, unit, _random_placements(unit, unit, -depth, n,
+                                                                                                  rng)))
+        cases.append(Case("pen_shallow", lname, depth, la, lb, _random_placements(la, lb, -depth, n, rng)))
+    small = box(0.2, 0.2, 0.2)
+    for name, t in (("small box centred in unit box", [0.0, 0.0, 0.0]),
+                    ("small box off-centre in unit box", [0.25, 0.1, -0.2])):
+        poses = [(np.eye(4), pose_matrix(r, t)) for r in random_rotations(n, rng)]
+        cases.append(Case("pen_containment", name, 0.0, unit, small, poses))
+    big = spq.Polyhedron.from_points(la.vertices * 2.0)
+    cases.append(Case("pen_containment", f"{config.links[0]} in its 2x copy", 0.0, big, la,
+                      [(np.eye(4), pose_matrix(np.eye(3), 0.01 * _unit(rng))) for _ in range(n)]))
+    for theta in (0.0, 1e-9, 1e-6):
+        poses = [place(unit, unit, np.eye(3), rot_axis(axis, theta), np.zeros(3), [1, 0, 0], -1e-3)
+                 for axis in ([0, 1, 0], [0, 1, 1])]
+        cases.append(Case("pen_parallel", "box|box depth 1e-3", theta, unit, unit, poses))
+    base_box = _random_placements(unit, unit, -0.01, n, rng)
+    base_link = _random_placements(la, lb, -0.01 * size, n, rng)
+    for s_ in (1e-3, 1e-1, 1.0, 1e1, 1e3):
+        for name, (a, b), base in (("box|box", (unit, unit), base_box), (lname, (la, lb), base_link)):
+            sa, sb = spq.Polyhedron.from_points(a.vertices * s_), spq.Polyhedron.from_points(b.vertices * s_)
+            poses = []
+            for pa, pb in base:
+                pa, pb = pa.copy(), pb.copy()
+                pa[:3, 3] *= s_
+                pb[:3, 3] *= s_
+                poses.append((pa, pb))
+            cases.append(Case("pen_scale", name, s_, sa, sb, poses))
+    for name, (a, b) in (("box|box", (unit, unit)), (lname, (la, lb))):
+        poses = []
+        for pa, pb in _random_placements(a, b, -1e-3, n, rng):
+            shift = 1e4 * _unit(rng)
+            pa, pb = pa.copy(), pb.copy()
+            pa[:3, 3] += shift
+            pb[:3, 3] += shift
+            poses.append((pa, pb))
+        cases.append(Case("pen_far_from_origin", name, 1e-3, a, b, poses))
+    # GJK ends with the origin on a segment or a triangle of its simplex for aligned boxes
+    for name, t in (("aligned, offset along x", [0.9, 0, 0]), ("aligned, offset along a face diagonal", [0.9, 0.9, 0]),
+                    ("aligned, offset along the body diagonal", [0.9, 0.9, 0.9])):
+        cases.append(Case("pen_degenerate_simplex", name, 0.1, unit, unit, [(np.eye(4), pose_matrix(np.eye(3), t))]))
+    plate, slab = box(1, 1, 1e-3), box(100, 100, 1)
+    for depth in (1e-9, 1e-6):
+        poses = [(np.eye(4), pose_matrix(rot_axis([0, 0, 1], ang), [dx, 0.0, 0.5 + 0.5e-3 - depth]))
+                 for ang, dx in ((0.0, 0.0), (0.7, 30.0))]
+        cases.append(Case("pen_long_face", "slab 100x100x1 | plate 1x1x1e-3", depth, slab, plate, poses))
+    return cases
+
+
 def fcl_gap_cases(config: StabilityConfig) -> list[Case]:
     """Boxes of sizes 1 and 2 with an exact 3.0 gap: one rotated about z (0..90 degrees), and a
     few random rotations (NOTES 5: FCL's libccd path reported a 3.0 gap as 3.16)."""
@@ -222,6 +298,23 @@ def verdict(engine: str, status: str, distance: float, ref_distance: float, ref_
     return "ok", allowed
 
 
+def depth_verdict(engine: str, gives_depth: bool, status: str, raw: float, ref_signed: float,
+                  extent: float) -> tuple[str, float]:
+    """('ok' | 'wrong' | 'failed' | 'no depth', allowed error in m) of a signed distance where the
+    reference overlaps or touches (see the module docstring)."""
+    tol_abs, tol_rel = ENGINE_DEPTH_TOL.get(engine, tolerance_of(engine))
+    allowed = tol_abs + tol_rel * abs(ref_signed) + 64 * EPS * extent
+    if not gives_depth:
+        return "no depth", allowed
+    if status == "failed" or not math.isfinite(raw):
+        return "failed", allowed
+    if abs(raw - ref_signed) > allowed:
+        return "wrong", allowed
+    if (ref_signed < -AMBIGUOUS_BAND and raw >= 0.0) or (ref_signed > AMBIGUOUS_BAND and raw < 0.0):
+        return "wrong", allowed
+    return "ok", allowed
+
+
 def run_cases(cases: list[Case], engines: dict, progress: bool = False) -> pd.DataFrame:
     rows = []
     for ci, case in enumerate(cases):
@@ -259,11 +352,18 @@ def run_cases(cases: list[Case], engines: dict, progress: bool = False) -> pd.Da
                                                               f"{type(exc).__name__}: {exc}", float("nan"))
                     v, allowed = verdict(name, res_status, dist, ref.distance, ref.signed_distance, extent)
                     err = dist - ref.distance
+                    dv, d_allowed, d_err = "", float("nan"), float("nan")
+                    if ref.signed_distance <= AMBIGUOUS_BAND:
+                        dv, d_allowed = depth_verdict(name, getattr(engines[name], "gives_depth", False),
+                                                      res_status, raw, ref.signed_distance, extent)
+                        if dv != "no depth":
+                            d_err = raw - ref.signed_distance
                     rows.append({**row, "distance": dist, "raw_distance": raw, "status": res_status,
                                  "error": err, "abs_error": abs(err),
                                  "rel_error": abs(err) / ref.distance if ref.distance > AMBIGUOUS_BAND else float("nan"),
                                  "ref_depth": ref.depth, "allowed_error": allowed, "time_us": dt * 1e6,
-                                 "verdict": v, "message": msg})
+                                 "verdict": v, "depth_error": d_err, "depth_abs_error": abs(d_err),
+                                 "allowed_depth_error": d_allowed, "depth_verdict": dv, "message": msg})
             finally:
                 if prepared is not None:
                     try:
@@ -312,11 +412,11 @@ def run(config: StabilityConfig, load_object, progress: bool = False) -> tuple[p
     engines = {}
     for name in names:
         try:
-            engines.update(available_engines([name]) if name != "spq" else {"spq": SpqEngine()})
+            engines.update(available_engines([name]) if name != "spq" else {"spq": SpqEngine(signed=True)})
         except Exception as exc:  # a missing package drops its engine only
             print(f"engine {name} skipped: {exc}")
     try:
-        cases = build_cases(config, load_object) + fcl_gap_cases(config)
+        cases = build_cases(config, load_object) + penetration_cases(config, load_object) + fcl_gap_cases(config)
         table = run_cases(cases, engines, progress)
     finally:
         for e in engines.values():
@@ -340,8 +440,23 @@ def summarize(table: pd.DataFrame, by=("engine",)) -> pd.DataFrame:
                 failed=("verdict", lambda v: int((v == "failed").sum())),
                 max_abs_error=("abs_error", "max"),
                 max_rel_error=("rel_error", "max"),
-                median_time_us=("time_us", "median")).reset_index()
+                median_time_us=("time_us", "median"),
+                depth_n=("depth_verdict", lambda v: int((v != "").sum())),
+                depth_ok=("depth_verdict", lambda v: int((v == "ok").sum())),
+                depth_wrong=("depth_verdict", lambda v: int((v == "wrong").sum())),
+                depth_failed=("depth_verdict", lambda v: int((v == "failed").sum())),
+                no_depth=("depth_verdict", lambda v: int((v == "no depth").sum())),
+                max_abs_depth_error=("depth_abs_error", "max")).reset_index()
     return out
+
+
+def depth_worst_cases(table: pd.DataFrame, k: int = 3) -> pd.DataFrame:
+    """The k largest depth errors per engine and family."""
+    t = table.dropna(subset=["depth_abs_error"])
+    idx = t.groupby(["engine", "family"], sort=False)["depth_abs_error"].nlargest(k).index.get_level_values(-1)
+    cols = ["engine", "family", "case", "param", "ref_signed", "raw_distance", "depth_abs_error",
+            "allowed_depth_error", "depth_verdict"]
+    return t.loc[idx, cols].reset_index(drop=True)
 
 
 def coal_sweep_summary(sweep: pd.DataFrame) -> pd.DataFrame:
@@ -389,6 +504,19 @@ FAMILY_NOTES = {
                    "1e-6 m and a 1e-5 m overlap.",
     "near_parallel": "Near-parallel faces: two unit boxes face to face, B tilted by 1e-3 .. 1e-9 rad (about an "
                      "in-face axis and a diagonal one), gaps 1e-3 and 1e-6 m.",
+    "pen_shallow": "Penetration, shallow: B pushed 1e-12 .. 1e-3 m past contact along the exact normal (unit boxes "
+                   "face to face and random, two links); depth scored against the reference's.",
+    "pen_containment": "Penetration, containment: a 0.2 m box inside a unit box (centred and off-centre, random "
+                       "rotations), a link inside its copy scaled by 2.",
+    "pen_parallel": "Penetration, parallel faces: unit boxes face to face 1e-3 m deep, B tilted by 0, 1e-9 and 1e-6 "
+                    "rad.",
+    "pen_scale": "Penetration, scales: the same pair and relative pose, 1% of the size deep, every length times "
+                 "1e-3 .. 1e3.",
+    "pen_far_from_origin": "Penetration 1e-3 m deep with both bodies 1e4 m from the origin.",
+    "pen_degenerate_simplex": "Penetration where GJK ends on a segment or a triangle: axis-aligned unit boxes offset "
+                              "by 0.9 m along x, a face diagonal and the body diagonal (0.1 m deep).",
+    "pen_long_face": "Penetration of a 1 x 1 x 1e-3 plate into a 100 x 100 x 1 slab by 1e-9 and 1e-6 m (long faces "
+                     "against a tiny depth), centred and 30 m off-centre turned 0.7 rad.",
     "fcl_box_gap_3": "FCL 3.0 gap (NOTES 5, fcl issue #508): axis-aligned unit boxes translated by 1 + gap along "
                      "x, y or z (param: the gap, 1, 2 or 3 m), boxes of sizes 1 and 2 aligned with a 3.0 m gap, B "
                      "(size 2) rotated about z by 0 .. 90 degrees (param: degrees) or randomly at an exact 3.0 m "

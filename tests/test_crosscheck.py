@@ -53,3 +53,44 @@ def test_spq_and_coal_agree_on_random_poses():
     assert table.results.sum() == 8000
     assert (table.status_disagreements == 0).all() and (table.spq_failed == 0).all()
     assert table.max_abs_difference.max() <= cc.AGREEMENT_TOL
+
+
+@pytest.mark.engines
+def test_depth_is_scored_against_the_reference_and_an_engine_without_depth_is_listed():
+    from harness.engines import register_engine
+    from harness.engines.coal_engine import CoalEngine
+
+    class OffByAMillimetre(CoalEngine):
+        """coal with every signed distance made 1 mm deeper: a wrong depth the scores must show."""
+
+        def prepare(self, a, b):
+            pair = super().prepare(a, b)
+            inner = pair.query_many
+
+            def query_many(pa, pb):
+                r = inner(pa, pb)
+                r.raw_distance = r.raw_distance - 1e-3
+                return r
+
+            pair.query_many = query_many
+            return pair
+
+    class NoDepth(CoalEngine):
+        gives_depth = False
+
+    register_engine("coal-deeper", lambda: OffByAMillimetre(name="coal-deeper"), replace=True)
+    register_engine("coal-nodepth", lambda: NoDepth(name="coal-nodepth"), replace=True)
+    config = cc.CrosscheckConfig(objects=["kuka_link_4"], per_bucket=5, seed=4,
+                                 engines=["spq", "coal-deeper", "coal-nodepth"],
+                                 buckets=["close-1e-2", "touching", "overlap-1e-3", "overlap-1e-1"])
+    table = cc.run(config, load_object, progress=False)
+    depth = cc.depth_summary(table)
+    spq_rows = depth[depth.engine == "spq"]
+    assert set(spq_rows.bucket) == {"touching", "overlap-1e-3", "overlap-1e-1"}  # separated buckets not scored
+    assert spq_rows.max_abs_depth_error.max() <= 1e-9 and (spq_rows.certificate_holds_pct == 100).all()
+    assert (spq_rows.sign_errors == 0).all() and spq_rows.max_witness_off_surface.max() <= 1e-9
+    deeper = depth[depth.engine == "coal-deeper"]
+    assert np.allclose(deeper.median_abs_depth_error, 1e-3, atol=1e-6)
+    assert list(depth[depth.engine == "coal-nodepth"].depth) == ["no depth"]
+    worst = cc.depth_worst_cases(table, k=2)
+    assert set(worst.engine) == {"spq", "coal-deeper"}

@@ -20,3 +20,22 @@ def test_stability_quick_writes_tables_and_spq_is_never_wrong(tmp_path):
     summary = pd.read_csv(tmp_path / "stability_summary.csv")
     assert int(summary.loc[summary.engine == "spq", "wrong"].iloc[0]) == 0
     assert "### near_parallel" in (tmp_path / "stability_summary.md").read_text()
+    pen = {"pen_shallow", "pen_containment", "pen_parallel", "pen_scale", "pen_far_from_origin",
+           "pen_degenerate_simplex", "pen_long_face"}
+    assert pen <= set(table.family)
+    for engine, rows in table[table.family.isin(pen)].groupby("engine"):  # every engine ran every family
+        assert set(rows.family) == pen, engine
+    spq_depth = spq_rows[spq_rows.depth_verdict.notna() & (spq_rows.depth_verdict != "")]
+    assert len(spq_depth) > 30 and not (spq_depth.depth_verdict == "wrong").any()
+    assert (spq_depth.depth_abs_error.dropna() <= spq_depth.allowed_depth_error.dropna()).all()
+    assert (tmp_path / "stability_depth_worst.csv").stat().st_size > 0
+
+
+def test_depth_verdicts():
+    from harness.stability import depth_verdict
+
+    assert depth_verdict("spq", True, "overlapping", -0.1, -0.1, 1.0)[0] == "ok"
+    assert depth_verdict("spq", True, "overlapping", -0.1 + 1e-6, -0.1, 1.0)[0] == "wrong"
+    assert depth_verdict("spq", True, "separated", 1e-6, -1e-6, 1.0)[0] == "wrong"  # the wrong side of contact
+    assert depth_verdict("spq", True, "failed", float("nan"), -0.1, 1.0)[0] == "failed"
+    assert depth_verdict("spq", False, "overlapping", 0.0, -0.1, 1.0)[0] == "no depth"

@@ -32,7 +32,7 @@ def __getattr__(name: str):
 def _spq() -> Engine:
     from harness.engines.spq_engine import SpqEngine
 
-    return SpqEngine()
+    return SpqEngine(signed=True)
 
 
 def _fcl() -> Engine:

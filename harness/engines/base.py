@@ -226,10 +226,13 @@ class PreparedPair(ABC):
 
 class Engine(ABC):
     """An external distance engine. ``name`` identifies it in reports; ``tolerance`` is the
-    convergence tolerance it runs at (None if the engine does not expose one)."""
+    convergence tolerance it runs at (None if the engine does not expose one). ``gives_depth``: an
+    overlap's raw_distance is minus the penetration depth (the length of the shortest translation
+    that separates the bodies); where it is False the depth scores list the engine as giving none."""
 
     name: str
     tolerance: float | None = None
+    gives_depth: bool = True
 
     @abstractmethod
     def prepare(self, a, b) -> PreparedPair:

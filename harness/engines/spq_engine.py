@@ -2,6 +2,8 @@
 
 ``query`` goes through ``spq.Pair`` (per call, warm start kept); ``query_many`` through the batched
 ``spq.distances`` (one compiled loop, each query cold), which is what a user calls for many poses.
+With ``signed`` (the registered "spq" engine) the queries are signed: an overlap's raw_distance is
+minus its penetration depth, with witness points on both surfaces; distance stays max(0, sd).
 """
 
 from __future__ import annotations
@@ -13,13 +15,13 @@ from harness.engines.base import BatchResult, Engine, EngineResult, PreparedPair
 
 
 class SpqPair(PreparedPair):
-    def __init__(self, a, b, tol: float, rel_tol: float):
-        self._pair = spq.Pair(a, b, tol=tol, rel_tol=rel_tol)
-        self._a, self._b, self._tol, self._rel_tol = a, b, tol, rel_tol
+    def __init__(self, a, b, tol: float, rel_tol: float, signed: bool = False):
+        self._pair = spq.Pair(a, b, tol=tol, rel_tol=rel_tol, signed=signed)
+        self._a, self._b, self._tol, self._rel_tol, self._signed = a, b, tol, rel_tol, signed
 
     def _query(self, pose_a: np.ndarray, pose_b: np.ndarray) -> EngineResult:
         r = self._pair.distance(pose_a, pose_b)
-        return EngineResult(r.distance, r.point_a, r.point_b, r.status, r.distance)
+        return EngineResult(max(r.distance, 0.0), r.point_a, r.point_b, r.status, r.distance)
 
     def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
         query = self._pair.distance
@@ -31,20 +33,26 @@ class SpqPair(PreparedPair):
 
     def query_many(self, poses_a, poses_b) -> BatchResult:
         poses_a, poses_b = self._check_batches(poses_a, poses_b)
-        r = spq.distances(self._a, self._b, poses_a, poses_b, tol=self._tol, rel_tol=self._rel_tol)
-        return BatchResult(r.distance, r.point_a, r.point_b, r.status.astype("<U11"), r.distance.copy())
+        r = spq.distances(self._a, self._b, poses_a, poses_b, tol=self._tol, rel_tol=self._rel_tol,
+                          signed=self._signed)
+        self.last_bounds = (r.lower_bound, r.upper_bound)  # spq's certificate, for the depth scores
+        return BatchResult(np.maximum(r.distance, 0.0), r.point_a, r.point_b, r.status.astype("<U11"),
+                           r.distance.copy())
 
 
 class SpqEngine(Engine):
-    """spq's GJK at absolute tolerance ``tol`` (m) and relative tolerance ``rel_tol``."""
+    """spq's GJK at absolute tolerance ``tol`` (m) and relative tolerance ``rel_tol``; ``signed``:
+    overlaps get their penetration depth (EPA)."""
 
-    def __init__(self, tol: float = spq.DEFAULT_TOL_ABS, rel_tol: float = spq.DEFAULT_TOL_REL, name: str = "spq"):
+    def __init__(self, tol: float = spq.DEFAULT_TOL_ABS, rel_tol: float = spq.DEFAULT_TOL_REL, name: str = "spq",
+                 signed: bool = False):
         self.name = name
         self.tolerance = float(tol)
         self.rel_tol = float(rel_tol)
+        self.signed = self.gives_depth = bool(signed)
 
     def prepare(self, a, b) -> SpqPair:
-        return SpqPair(a, b, self.tolerance, self.rel_tol)
+        return SpqPair(a, b, self.tolerance, self.rel_tol, self.signed)
 
     def version(self) -> str:
         import numba
