@@ -20,7 +20,7 @@ class _Scene:
     def __init__(self, gradient):
         self.gradient = gradient
 
-    def distances(self, q, coherent=False):
+    def distances(self, q, coherent=False, signed=False):
         return _Result()
 
     def distance_gradient(self, q, result, pair):
