@@ -118,6 +118,17 @@ def _random_placements(a, b, target, n, rng, t_a=None):
     return out
 
 
+def _scaled(a, b, base, s: float):
+    """(a, b, poses) with every length times s: the bodies' vertices and the poses' translations."""
+    poses = []
+    for pa, pb in base:
+        pa, pb = pa.copy(), pb.copy()
+        pa[:3, 3] *= s
+        pb[:3, 3] *= s
+        poses.append((pa, pb))
+    return spq.Polyhedron.from_points(a.vertices * s), spq.Polyhedron.from_points(b.vertices * s), poses
+
+
 def build_cases(config: StabilityConfig, load_object) -> list[Case]:
     rng = np.random.default_rng(config.seed)
     n = config.n
@@ -147,14 +158,7 @@ def build_cases(config: StabilityConfig, load_object) -> list[Case]:
     base_link = _random_placements(la, lb, 0.01, n, rng)
     for s in (1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3):
         for name, (a, b), base in (("box|box", (unit, unit), base_box), (lname, (la, lb), base_link)):
-            sa, sb = spq.Polyhedron.from_points(a.vertices * s), spq.Polyhedron.from_points(b.vertices * s)
-            poses = []
-            for pa, pb in base:
-                pa, pb = pa.copy(), pb.copy()
-                pa[:3, 3] *= s
-                pb[:3, 3] *= s
-                poses.append((pa, pb))
-            cases.append(Case("scale", name, s, sa, sb, poses))
+            cases.append(Case("scale", name, s, *_scaled(a, b, base, s)))
 
     # far from the origin: both bodies shifted by 1e4 m, same relative pose
     for gap in (1e-2, 1e-4, 1e-6):
@@ -213,16 +217,9 @@ def penetration_cases(config: StabilityConfig, load_object) -> list[Case]:
         cases.append(Case("pen_parallel", "box|box depth 1e-3", theta, unit, unit, poses))
     base_box = _random_placements(unit, unit, -0.01, n, rng)
     base_link = _random_placements(la, lb, -0.01 * size, n, rng)
-    for s_ in (1e-3, 1e-1, 1.0, 1e1, 1e3):
+    for s in (1e-3, 1e-1, 1.0, 1e1, 1e3):
         for name, (a, b), base in (("box|box", (unit, unit), base_box), (lname, (la, lb), base_link)):
-            sa, sb = spq.Polyhedron.from_points(a.vertices * s_), spq.Polyhedron.from_points(b.vertices * s_)
-            poses = []
-            for pa, pb in base:
-                pa, pb = pa.copy(), pb.copy()
-                pa[:3, 3] *= s_
-                pb[:3, 3] *= s_
-                poses.append((pa, pb))
-            cases.append(Case("pen_scale", name, s_, sa, sb, poses))
+            cases.append(Case("pen_scale", name, s, *_scaled(a, b, base, s)))
     for name, (a, b) in (("box|box", (unit, unit)), (lname, (la, lb))):
         poses = []
         for pa, pb in _random_placements(a, b, -1e-3, n, rng):

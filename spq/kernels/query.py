@@ -990,21 +990,11 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
             upper = d - grow
             low = -core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
             if bounds_closed(upper, low, tol_abs, tol_rel):
-                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
                 descent_result(SEPARATED, k, work[12], work[4:8], work[8:12], lower, it + eit, tol_abs, n0, n1, n2,
                                out)
-                for c in range(3):
-                    out[OUT_POINT_A + c] += (ma - mA) * (n0, n1, n2)[c]
-                    out[OUT_POINT_B + c] -= (mb - mB) * (n0, n1, n2)[c]
-                set_result(upper, low, it + eit, tol_abs, out)
-                add_margins(mA, mB, tol_abs, out)
-                return int(out[OUT_STATUS])
-            used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter,
-                                     warm, work, iwork[0:WARM_SIZE], work[DESCENT_ROWS:PROBE_ROW], False, out, True,
-                                     iwork[WARM_SIZE:EPA_IOFF])
-            if used >= 0:
-                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_PATCHES
-                out[OUT_ITERATIONS] = it + eit + used
+                return _hulls_settle(mA, mB, ma, mb, n0, n1, n2, upper, low, it + eit, tol_abs, work, out)
+            if _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm,
+                               work, iwork, out, it + eit):
                 return int(out[OUT_STATUS])
             # the EPA on the bodies, from their support along the hulls' normal
             k = _support_simplex(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
@@ -1025,19 +1015,9 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
             h = core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
             low = -h
             if bounds_closed(upper, low, tol_abs, tol_rel):
-                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
-                for c in range(3):
-                    out[OUT_POINT_A + c] += (ma - mA) * out[OUT_NORMAL + c]
-                    out[OUT_POINT_B + c] -= (mb - mB) * out[OUT_NORMAL + c]
-                set_result(upper, low, it + eit, tol_abs, out)
-                add_margins(mA, mB, tol_abs, out)
-                return int(out[OUT_STATUS])
-            used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter,
-                                     warm, work, iwork[0:WARM_SIZE], work[DESCENT_ROWS:PROBE_ROW], False, out, True,
-                                     iwork[WARM_SIZE:EPA_IOFF])
-            if used >= 0:
-                work[EPA_ROW + EPA_TMP + 1, 3] = HULL_PATCHES
-                out[OUT_ITERATIONS] = it + eit + used
+                return _hulls_settle(mA, mB, ma, mb, n0, n1, n2, upper, low, it + eit, tol_abs, work, out)
+            if _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm,
+                               work, iwork, out, it + eit):
                 return int(out[OUT_STATUS])
             # the EPA goes on with the bodies' supports, from the hulls' polytope (its own bound only:
             # the result's witness points are its face's)
@@ -1067,6 +1047,34 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
     out[OUT_ITERATIONS] = it + eit
     add_margins(mA, mB, tol_abs, out)
     return int(out[OUT_STATUS])
+
+
+@kernel
+def _hulls_settle(mA, mB, ma, mb, n0, n1, n2, upper, low, iterations, tol_abs, work, out):
+    """The hulls' witness points in out pushed out by the radii along unit n, the bounds (upper, low)
+    and the margins: the result of signed_from_hulls settled on the hulls. Returns the status."""
+    work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
+    for c in range(3):
+        out[OUT_POINT_A + c] += (ma - mA) * (n0, n1, n2)[c]
+        out[OUT_POINT_B + c] -= (mb - mB) * (n0, n1, n2)[c]
+    set_result(upper, low, iterations, tol_abs, out)
+    add_margins(mA, mB, tol_abs, out)
+    return int(out[OUT_STATUS])
+
+
+@kernel
+def _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work, iwork,
+                    out, iterations):
+    """Whether the patches facing along n settle a signed query (finish_on_patches with the overlap
+    certificate); the result, iterations included, is then in out."""
+    used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
+                             iwork[0:WARM_SIZE], work[DESCENT_ROWS:PROBE_ROW], False, out, True,
+                             iwork[WARM_SIZE:EPA_IOFF])
+    if used < 0:
+        return False
+    work[EPA_ROW + EPA_TMP + 1, 3] = HULL_PATCHES
+    out[OUT_ITERATIONS] = iterations + used
+    return True
 
 
 @kernel
