@@ -292,7 +292,7 @@ SUITES = [
     Suite("rtradeoff", lambda q: ["rtradeoff"] + (["--quick"] if q else []), rtradeoff_section),
     Suite("stability", lambda q: ["stability", "--quiet"] + (["--quick"] if q else []), stability_section),
     Suite("depth", lambda q: ["depth", "--quiet"] + (["--per-bucket", "3", "--stp-per-bucket", "1"] if q else
-                                                     ["--per-bucket", "100"]),
+                                                     ["--per-bucket", "50"]),
           depth_section),
     Suite("bench robot", lambda q: ["bench", "robot", "--quiet", "--robot", report_robot()] + (["--configs", "40", "--steps", "200", "--repeats",
                                                                      "1", "--engine-configs", "10"] if q else []),
