@@ -173,8 +173,8 @@ def _swap_vertices(work, iw, i, j):
     _set_features(iw, j, fa, fb)
 
 
-@kernel
-def _support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work):
+@kernel(inline="always")
+def _support_inline(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work):
     """Support point of D along d into the scratch rows (pa, pb, then w = pa - pb); returns h_D
     along the unit vector of d."""
     pa = work[EPA_ROW + EPA_TMP]
@@ -184,6 +184,12 @@ def _support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work):
     for c in range(3):
         w[c] = pa[c] - pb[c]
     return (d0 * w[0] + d1 * w[1] + d2 * w[2]) / math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@kernel
+def _support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work):
+    """_support_inline as a call (the initial tetrahedron's many supports need not be inlined)."""
+    return _support_inline(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work)
 
 
 @kernel(inline="always")
@@ -364,7 +370,7 @@ def _grow(kA, fA, iA, kB, fB, iB, R, t, m, warm, work, iw):
     return m, lower
 
 
-@kernel
+@kernel(inline="always")
 def _plane_of(work, a, b, c, c0, c1, c2):
     """(PLANE_*, unit normal, offset) of the triangle of vertices a, b, c (counter-clockwise from
     outside): PLANE_SLIVER if it is a sliver, PLANE_INWARD if it faces the interior point
@@ -457,7 +463,7 @@ def _height(work, g, w):
     return work[row, 0] * w[0] + work[row, 1] * w[1] + work[row, 2] * w[2] - work[row, 3]
 
 
-@kernel
+@kernel(inline="always")
 def _horizon(work, iw, f0, w, stamp, eps):
     """Mark dead the faces that see w (w above their plane by more than eps), walking from f0 (which
     does), list them, and list the horizon: the edges between a dead face and a live one, in the
@@ -518,7 +524,7 @@ def _revive(iw, nd):
         _set_alive(iw, iw[EPA_IOFF + EPA_DEAD + i], True)
 
 
-@kernel
+@kernel(inline="always")
 def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
     """Replace the faces that vertex wv sees (from face f0, which sees it) by a fan from the horizon
     to wv. Returns (0, new top), or (STOP_*, top) with the polytope left as it was: a broken horizon,
@@ -565,7 +571,7 @@ def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
     return 0, top
 
 
-@kernel
+@kernel(inline="always")
 def _least_face(work, iw, top):
     """The live face of least offset, and that offset."""
     best, bf = math.inf, -1
@@ -753,7 +759,7 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
             break
         it += 1
         row = EPA_ROW + EPA_PLANES + f
-        h = _support(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm, work)
+        h = _support_inline(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm, work)
         lower = max(lower, -h)
         if bounds_closed(upper, lower, tol_abs, tol_rel):
             closed = True

@@ -339,6 +339,10 @@ def _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, 
     for i in range(WARM_SIZE):
         iprobe[i] = 0
     iprobe[WARM_FEATURE_A], iprobe[WARM_FEATURE_B] = warm[WARM_FEATURE_A], warm[WARM_FEATURE_B]
+    if (kA == STP) != (kB == STP):
+        # the small ball's centre lies near the facing patch's ball centre, whose descent against the
+        # core left its simplex in warm: the centre's descent starts from it
+        copy_point_simplex(warm, iprobe, 0 if kA == STP else 1)
     minkowski_support(kA, fA, iA, kB, fB, iB, R, t, m0, m1, m2, iprobe, sa, sb, pwork[16])
     low = -(m0 * (sa[0] - sb[0]) + m1 * (sa[1] - sb[1]) + m2 * (sa[2] - sb[2]) + mA + mB)
     ra = fA[F_R] if kA == STP else 0.0
