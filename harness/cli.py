@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.check import SECTIONS, SPEED_FLOOR, CheckConfig
 from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 from spq.shapes.superellipsoid import INNER_DIRECTIONS
 
@@ -22,6 +23,15 @@ def _print(df: pd.DataFrame) -> None:
         print(df.to_string(index=False))
 
 
+def _with_plugins(names: list[str] | None, specs: list[str] | None) -> list[str] | None:
+    """Engine names to run: those named plus the plugins of --engine (registered here), or None
+    (every registered engine that imports, the plugins included) when none is named."""
+    from harness.engines import register_plugin
+
+    plugins = [register_plugin(spec) for spec in specs or []]
+    return list(dict.fromkeys(names + plugins)) if names else None
+
+
 def cmd_crosscheck(args) -> int:
     from datasets import DEFAULT_OBJECTS, load_object
     from harness import crosscheck as cc
@@ -30,8 +40,18 @@ def cmd_crosscheck(args) -> int:
 
     start = time.perf_counter()
     config = cc.CrosscheckConfig(objects=args.objects or DEFAULT_OBJECTS, per_bucket=args.per_bucket,
-                                 seed=args.seed, engines=args.engines, buckets=args.buckets)
-    table = cc.run(config, load_object, progress=not args.quiet)
+                                 seed=args.seed, engines=_with_plugins(args.engines, args.engine),
+                                 buckets=args.buckets)
+    from harness.check import isolated
+    from harness.engines import available_engines
+
+    plain = available_engines(config.engines)
+    engines = isolated(plain)  # a native engine's crash fails its queries, not the run
+    try:
+        table = cc.run(config, load_object, progress=not args.quiet, engines=engines)
+    finally:
+        for engine in {id(e): e for e in [*plain.values(), *engines.values()]}.values():
+            engine.close()
     summary = cc.summarize(table)
     totals = cc.summarize(table, by=("engine",))
     worst = cc.worst_cases(table)
@@ -577,6 +597,78 @@ def cmd_scene(args) -> int:
     return 0
 
 
+def cmd_check(args) -> int:
+    from datasets import load_object
+    from harness import check as ck
+    from harness.engines import available_engines
+
+    start = time.perf_counter()
+    names = _with_plugins(args.engines, args.engine)
+    try:
+        engines = available_engines(names)
+    except ImportError as exc:
+        print(f"spq check: error: an engine asked for cannot be built: {exc}", file=sys.stderr)
+        return 2
+    baseline = ck.load_results(args.baseline) if args.baseline else None
+    if baseline is not None and baseline["meta"].get("config", {}).get("sections") is not None:
+        b = baseline["meta"]["config"]
+        mine = {"seed": args.seed, "per_bucket": args.per_bucket, "oracle_per_bucket": args.oracle_per_bucket,
+                "speed_poses": args.speed_poses, "speed_rounds": args.speed_rounds, "peer": args.peer}
+        differ = {k: (b.get(k), v) for k, v in mine.items() if b.get(k) != v}
+        if differ:
+            print(f"spq check: note: the baseline ran with other settings {differ} (baseline, now); its figures "
+                  "are not comparable one for one", file=sys.stderr)
+    config = ck.CheckConfig(seed=args.seed, per_bucket=args.per_bucket, oracle_per_bucket=args.oracle_per_bucket,
+                            speed_poses=args.speed_poses, speed_rounds=args.speed_rounds, peer=args.peer,
+                            sections=tuple(args.sections))
+    if "speed" in config.sections and config.peer not in engines:
+        print(f"spq check: error: the speed check times against {config.peer!r}, which is not running "
+              f"(engines: {list(engines)}); add it or choose --peer", file=sys.stderr)
+        return 2
+    try:
+        metrics, _ = ck.run_check(config, engines, load_object, progress=not args.quiet)
+    finally:
+        for e in engines.values():
+            e.close()
+    seconds = time.perf_counter() - start
+    doc = ck.results_document(metrics, config, engines, seconds, args.speed_floor)
+    ck.save_results(doc, Path(args.out) / "check.json")
+    (Path(args.out) / "check_diff.csv").unlink(missing_ok=True)  # a diff of an earlier run must not linger
+    diff = None
+    if baseline is not None:
+        diff = ck.compare(metrics, ck.metrics_of(baseline), set(engines), args.speed, args.speed_floor)
+        diff.to_csv(Path(args.out) / "check_diff.csv", index=False)
+        shown = diff[~diff.verdict.isin([ck.OK, ck.INFO])]
+        if len(shown):
+            print("\nChanges against the baseline (metric, baseline, now, verdict):")
+            _print(shown[["engine", "check", "metric", "baseline", "now", "verdict", "rule"]])
+    if args.junit:
+        Path(args.junit).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.junit).write_text(ck.junit_xml(metrics, diff, seconds))
+    if args.history:
+        ck.append_history(doc, args.history)
+    if args.update_baseline:
+        ck.save_results(doc, args.update_baseline)
+    print()
+    for line in ck.summary_lines(metrics, diff):
+        print(line)
+    code = ck.exit_code(diff)
+    verdict = "no baseline given" if diff is None else ("REGRESSION" if code else "pass")
+    print(f"spq check: {verdict} ({len(metrics)} metrics, {len(engines)} engines, {seconds:.0f} s)")
+    return code
+
+
+def cmd_history(args) -> int:
+    from harness import check as ck
+
+    table = ck.load_history(args.history)
+    if table.empty or table.run.nunique() < 1:
+        raise ValueError(f"history {args.history!r} holds no runs")
+    path = ck.history_chart(table, Path(args.out))
+    print(f"{table.run.nunique()} runs, {table.commit.nunique()} commits; chart: {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spq", description="Smooth Proximity Queries: measurements.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -595,6 +687,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--buckets", nargs="+", help="bucket names (default: all)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--engines", nargs="+", help="engine names (default: all that import)")
+    p.add_argument("--engine", action="append", metavar="[NAME=]MODULE:CLASS",
+                   help="a plugin engine adapter to add (repeatable); see harness/engines/base.py")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="output folder (default: reports)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_crosscheck)
@@ -686,6 +780,35 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder for the per-configuration and closest-posture CSVs (default: none written)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_scene)
+
+    p = sub.add_parser("check", help="the gate: a fixed-seed run of every engine judged against a baseline (exit 0/1/2)")
+    p.add_argument("--baseline", help="results file of an earlier run to compare with (regressions: exit 1)")
+    p.add_argument("--update-baseline", metavar="FILE", help="write this run's results as the new baseline")
+    p.add_argument("--out", default=str(DEFAULT_OUT), help="folder for the results file check.json (default reports)")
+    p.add_argument("--junit", metavar="FILE", help="write JUnit XML: one test case per engine and check")
+    p.add_argument("--history", metavar="FILE", help="append this run (commit, date, machine, metrics) to FILE")
+    p.add_argument("--engines", nargs="+", help="registered engine names (default: all that import)")
+    p.add_argument("--engine", action="append", metavar="[NAME=]MODULE:CLASS",
+                   help="a plugin engine adapter to add (repeatable); see harness/engines/base.py")
+    p.add_argument("--speed", choices=["strict", "advisory"], default="strict",
+                   help="advisory: report slower speed ratios without failing")
+    p.add_argument("--speed-floor", type=float, default=SPEED_FLOOR, dest="speed_floor",
+                   help=f"least relative drop of a speed ratio that fails (default {SPEED_FLOOR}; noise may raise it)")
+    p.add_argument("--sections", nargs="+", default=list(SECTIONS), choices=list(SECTIONS))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--per-bucket", type=int, default=CheckConfig.per_bucket, help="PCH-PCH poses per distance bucket")
+    p.add_argument("--oracle-per-bucket", type=int, default=CheckConfig.oracle_per_bucket,
+                   help="poses per overlap bucket and STP/CSE pair against the depth oracle")
+    p.add_argument("--speed-poses", type=int, default=CheckConfig.speed_poses)
+    p.add_argument("--speed-rounds", type=int, default=CheckConfig.speed_rounds)
+    p.add_argument("--peer", default="coal", help="the engine speed ratios are taken against (default coal)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("history", help="chart accuracy and speed ratios over the runs of a check history file")
+    p.add_argument("history", help="history file written by spq check --history")
+    p.add_argument("--out", default=str(DEFAULT_OUT / "check_history.png"))
+    p.set_defaults(func=cmd_history)
     return parser
 
 

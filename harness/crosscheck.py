@@ -108,12 +108,15 @@ def score(suite: PoseSuite, engine_name: str, result, a, b, gives_depth: bool = 
     })
 
 
-def run(config: CrosscheckConfig, load_object, progress: bool = True) -> pd.DataFrame:
-    """Run every engine on every pair's bucket suite; returns the tidy table."""
+def run(config: CrosscheckConfig, load_object, progress: bool = True, engines: dict | None = None) -> pd.DataFrame:
+    """Run every engine on every pair's bucket suite; returns the tidy table. engines: {name: Engine}
+    to run (the caller keeps and closes them); default: config.engines from the registry."""
     pairs = object_pairs(config.objects)
     counts = _split(config.per_bucket, len(pairs))
     buckets = {k: BUCKETS[k] for k in (config.buckets or BUCKETS)}
-    engines = available_engines(config.engines)
+    owned = engines is None
+    if owned:
+        engines = available_engines(config.engines)
     frames = []
     try:
         total = sum(counts) * len(buckets)
@@ -135,8 +138,9 @@ def run(config: CrosscheckConfig, load_object, progress: bool = True) -> pd.Data
                                     getattr(prepared, "last_bounds", None)))
         bar.close()
     finally:
-        for engine in engines.values():
-            engine.close()
+        if owned:
+            for engine in engines.values():
+                engine.close()
     return pd.concat(frames, ignore_index=True)
 
 

@@ -23,6 +23,61 @@ class Suite:
     name: str
     args: Callable[[bool], list[str]]  # quick -> command-line arguments (without --out)
     section: Callable[[Path], Section]
+    ok_codes: tuple = (0,)  # exit codes that still make a section (spq check's 1: a regression, shown)
+    args_in: Callable[[Path], list[str]] | None = None  # more arguments naming files in the output folder
+
+
+CHECK_BASELINE = Path(__file__).resolve().parent.parent / ".ci" / "check-baseline.json"
+
+
+def check_args(quick: bool) -> list[str]:
+    """spq check against the committed baseline (if this is a source checkout), speed advisory, the
+    run appended to the report's history."""
+    if quick:  # smaller than the baseline's run: nothing to compare with
+        return ["check", "--quiet", "--per-bucket", "26", "--oracle-per-bucket", "1", "--speed-poses", "500"]
+    args = ["check", "--quiet", "--speed", "advisory"]
+    return args + (["--baseline", str(CHECK_BASELINE)] if CHECK_BASELINE.exists() else [])
+
+
+def check_section(out: Path) -> Section:
+    from harness import check as ck
+
+    doc = ck.load_results(out / "check.json")
+    metrics = pd.DataFrame(doc["metrics"])
+    judged = (out / "check_diff.csv").exists()
+    paragraphs = [
+        f"spq check is the gate a CI runs (README: 'spq check in a CI'): {len(metrics)} metrics over "
+        f"{metrics.engine.nunique()} engines at fixed seeds, in {doc['meta']['seconds']:.0f} s"
+        + (", judged against the committed baseline (.ci/check-baseline.json): accuracy regressions fail, speed "
+           "ratios are advisory here." if judged else "; no baseline compared in this run.")]
+    tables = []
+    per = []
+    for engine, g in metrics.groupby("engine", sort=False):
+        acc = g[(g.kind == "error") & g.check.str.startswith("accuracy")]
+        speed = g[(g.kind == "ratio") & g.metric.str.startswith("PCH-PCH per-call")]
+        per.append({"engine": engine, "checks": g.check.nunique(),
+                    "wrong_failed_missed": int(g[g.kind == "count"].value.sum()),
+                    "max_pch_error_m": acc.value.max() if len(acc) else float("nan"),
+                    "per_call_speed_ratio": speed.value.iloc[0] if len(speed) else float("nan")})
+    tables.append(("Per engine: counts of wrong, failed and missed-bound cases over all checks; the largest "
+                   "PCH-PCH error; the per-call speed ratio to coal", pd.DataFrame(per)))
+    if (out / "check_diff.csv").exists():
+        diff = _read(out, "check_diff.csv")
+        counts = diff.verdict.value_counts()
+        paragraphs.append("Against the baseline: " + ", ".join(f"{k} {v}" for k, v in counts.items()) + ".")
+        changed = diff[~diff.verdict.isin(["ok", "info"])]
+        if len(changed):
+            tables.append(("Metrics that changed against the baseline", changed))
+    charts = []
+    history = out / "check_history.jsonl"
+    if history.exists():
+        table = ck.load_history(history)
+        path = ck.history_chart(table, out / "check_history.png")
+        charts.append(Chart(path, f"Check history, {table.run.nunique()} runs (x: the commit of each run). Left: the "
+                                  "largest PCH-PCH error per engine; middle: wrong, failed and missed-bound cases; "
+                                  "right: speed ratios to coal. Look for a step up (left, middle) or down (right) at "
+                                  "a commit."))
+    return Section("The gate: spq check", paragraphs, tables, charts)
 
 
 def _read(out: Path, name: str) -> pd.DataFrame:
@@ -297,6 +352,8 @@ SUITES = [
     Suite("bench robot", lambda q: ["bench", "robot", "--quiet", "--robot", report_robot()] + (["--configs", "40", "--steps", "200", "--repeats",
                                                                      "1", "--engine-configs", "10"] if q else []),
           robot_section),
+    Suite("check", check_args, check_section, ok_codes=(0, 1),
+          args_in=lambda out: ["--history", str(out / "check_history.jsonl")]),
 ]
 
 
@@ -310,8 +367,8 @@ def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = N
         if only and suite.name not in only:
             continue
         t0 = time.perf_counter()
-        code = main(suite.args(quick) + ["--out", str(out)])
-        if code != 0:
+        code = main(suite.args(quick) + (suite.args_in(out) if suite.args_in else []) + ["--out", str(out)])
+        if code not in suite.ok_codes:
             raise RuntimeError(f"suite {suite.name!r} failed with exit code {code}")
         timings[suite.name] = round(time.perf_counter() - t0, 1)
         sections.append(suite.section(out))

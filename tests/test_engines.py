@@ -15,7 +15,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from harness.engines import STATUSES, BatchResult, available_engines, engine_names, register_engine
+import spq
+from harness.engines import (
+    STATUSES,
+    BatchResult,
+    available_engines,
+    engine_names,
+    register_engine,
+)
 from harness.engines.base import EngineResult, status_of
 from spq.shapes.polyhedron import Polyhedron
 
@@ -299,3 +306,26 @@ def test_results_are_engine_results_with_world_points_as_float_arrays(engines, b
     result = engines["fcl"].prepare(*boxes).query(*box_scene(HALF[0] + GAP + HALF[1], np.eye(4)))
     assert isinstance(result, EngineResult)
     assert result.point_a.dtype == np.float64 and result.point_a.shape == (3,)
+
+
+def test_isolated_engine_survives_native_crashes():
+    """A query that kills the engine's process comes back 'failed'; the others keep the engine's answers."""
+    from datasets import load_object
+    from harness.engines.isolated import CRASHED, IsolatedEngine
+    from harness.poses import random_poses
+
+    a, b = load_object("kuka_link_4"), load_object("panda_link_2")
+    pa, pb = random_poses(8, 6, 0.12)  # one overlapping pose of eight
+    truth = spq.distances(a, b, pa, pb, signed=True)
+    over = truth.status == "overlapping"
+    assert 0 < over.sum() < len(over)
+    engine = IsolatedEngine("aborts", plugin="tests.check_plugins:AbortsOnOverlap")
+    try:
+        pair = engine.prepare(a, b)
+        got = pair.query_many(pa, pb)
+        one = pair.query(pa[np.argmax(over)], pb[np.argmax(over)])
+    finally:
+        engine.close()
+    assert (got.status[over] == "failed").all()
+    np.testing.assert_array_equal(got.distance[~over], truth.distance[~over])
+    assert one.status == "failed" and one.message == CRASHED

@@ -11,7 +11,13 @@ import warnings
 from collections.abc import Callable, Iterable
 from importlib import import_module
 
-from harness.engines.base import STATUSES, BatchResult, Engine, EngineResult, PreparedPair
+from harness.engines.base import (
+    STATUSES,
+    BatchResult,
+    Engine,
+    EngineResult,
+    PreparedPair,
+)
 
 EngineFactory = Callable[[], Engine]
 
@@ -68,6 +74,69 @@ ENGINE_FACTORIES: dict[str, EngineFactory] = {
 }
 
 
+ENTRY_POINT_GROUP = "spq.engines"
+_entry_points_loaded = False
+
+
+def load_plugin(spec: str) -> EngineFactory:
+    """The engine factory named by ``spec``, "package.module:Attribute": a class (or any callable)
+    that takes no arguments and returns an :class:`Engine`. Raises ValueError if it cannot be loaded."""
+    module, sep, attr = spec.partition(":")
+    if not sep or not module or not attr:
+        raise ValueError(f"engine plugin {spec!r}: expected 'package.module:Class'")
+    try:
+        obj = import_module(module)
+    except ImportError as exc:
+        raise ValueError(f"engine plugin {spec!r}: cannot import {module!r} ({exc})") from None
+    for part in attr.split("."):
+        obj = getattr(obj, part, None)
+        if obj is None:
+            raise ValueError(f"engine plugin {spec!r}: {module!r} has no attribute {attr!r}")
+    if not callable(obj):
+        raise ValueError(f"engine plugin {spec!r}: {attr!r} is not a class or callable")
+    return obj
+
+
+def _named(factory: EngineFactory, name: str) -> EngineFactory:
+    """A factory whose engines report ``name`` (the name they are registered and scored under)."""
+    def build() -> Engine:
+        engine = factory()
+        if not isinstance(engine, Engine):
+            raise ValueError(f"engine {name!r}: its factory returned {type(engine).__name__}, not an Engine "
+                             "(see harness.engines.base)")
+        engine.name = name
+        return engine
+    return build
+
+
+def register_plugin(spec: str, name: str | None = None) -> str:
+    """Register the engine of ``spec`` ("[name=]package.module:Class", see :func:`load_plugin`) under
+    ``name`` (default: the class's ``name`` attribute, else the class name), replacing any engine of
+    that name; returns the name."""
+    if "=" in spec and name is None:
+        name, spec = spec.split("=", 1)
+    factory = load_plugin(spec)
+    name = name or getattr(factory, "name", None) or getattr(factory, "__name__", None)
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"engine plugin {spec!r}: give it a name ('name={spec}')")
+    ENGINE_FACTORIES[name] = _named(factory, name)
+    return name
+
+
+def _load_entry_points() -> None:
+    """Register the engines that installed packages declare in the entry-point group "spq.engines"
+    (name = the entry point's name, value = "package.module:Class"); built-in names win."""
+    global _entry_points_loaded
+    if _entry_points_loaded:
+        return
+    _entry_points_loaded = True
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name not in ENGINE_FACTORIES:
+            ENGINE_FACTORIES[ep.name] = _named(lambda ep=ep: ep.load()(), ep.name)
+
+
 def register_engine(name: str, factory: EngineFactory, *, replace: bool = False) -> None:
     """Make ``available_engines`` offer ``name``, built by calling ``factory()``."""
     if not replace and name in ENGINE_FACTORIES:
@@ -76,7 +145,8 @@ def register_engine(name: str, factory: EngineFactory, *, replace: bool = False)
 
 
 def engine_names() -> list[str]:
-    """Registered engine names, in registration order."""
+    """Registered engine names, in registration order (entry-point plugins after the built-in ones)."""
+    _load_entry_points()
     return list(ENGINE_FACTORIES)
 
 
@@ -87,6 +157,7 @@ def available_engines(include: Iterable[str] | str | None = None) -> dict[str, E
         warning) those whose package cannot be imported. A named engine that cannot be built raises.
     Engines holding resources (pybullet clients) should be ``close()``d by the caller.
     """
+    _load_entry_points()
     if isinstance(include, str):
         include = [include]
     names = engine_names() if include is None else list(include)
@@ -113,6 +184,9 @@ __all__ = [
     "EngineFactory",
     "ENGINE_FACTORIES",
     "register_engine",
+    "register_plugin",
+    "load_plugin",
+    "ENTRY_POINT_GROUP",
     "engine_names",
     "available_engines",
     *_ENGINE_CLASSES,

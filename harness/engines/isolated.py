@@ -1,0 +1,192 @@
+"""An engine run in a child process, so that a native crash costs the queries it hit, not the run.
+
+Some engines end the interpreter on rare inputs: python-fcl's libccd EPA throws a C++ exception that
+nothing catches ("The origin is outside of the polytope", std::terminate) on some touching poses.
+:class:`IsolatedEngine` serves a registered engine from a child process (multiprocessing, spawn).
+When the child dies during a batch, a fresh one takes over and the batch is split in halves until
+the poses that kill it are found; those come back as status "failed" with the reason, the others
+with the engine's own answers. Results are the engine's, bit for bit (arrays cross the pipe as they
+are); only the time per query grows (one round trip per call), so timing suites use the engine
+in-process.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+
+import numpy as np
+
+from harness.engines.base import (
+    BatchResult,
+    Engine,
+    EngineResult,
+    PreparedPair,
+    failed_result,
+)
+
+CRASHED = "the engine's process died on this query (a native crash)"
+
+
+def _serve(conn, name: str, plugin: str | None) -> None:
+    """The child: build engine ``name`` (registered from ``plugin``, "module:Class", if given) and
+    answer requests until told to stop or the pipe closes."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)  # a native abort's message would only clutter the parent's output
+    from harness.engines import available_engines, register_plugin
+
+    if plugin:
+        register_plugin(plugin, name)
+
+    engine = available_engines([name])[name]
+    pair = None
+    conn.send((engine.tolerance, bool(getattr(engine, "gives_depth", False)), engine.version()))
+    while True:
+        try:
+            op, payload = conn.recv()
+        except EOFError:
+            break
+        if op == "stop":
+            break
+        try:
+            if op == "prepare":
+                if pair is not None:
+                    pair.close()
+                pair = engine.prepare(*payload)
+                conn.send(("ok", None))
+            elif op == "query_many":
+                r = pair.query_many(*payload)
+                conn.send(("ok", (r.distance, r.point_a, r.point_b, r.status, r.raw_distance)))
+            elif op == "query":
+                r = pair.query(*payload)
+                conn.send(("ok", (r.distance, r.point_a, r.point_b, r.status, r.raw_distance, r.message)))
+            else:
+                conn.send(("error", f"unknown request {op!r}"))
+        except Exception as exc:  # reported to the parent, which raises it there
+            conn.send(("error", f"{type(exc).__name__}: {exc}"))
+    if pair is not None:
+        pair.close()
+    engine.close()
+
+
+class WorkerDied(Exception):
+    """The child process ended while answering."""
+
+
+class _Worker:
+    """One child process serving one engine; ``call`` raises WorkerDied if the child died."""
+
+    def __init__(self, name: str, plugin: str | None = None):
+        ctx = mp.get_context("spawn")
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_serve, args=(child, name, plugin), daemon=True)
+        self.proc.start()
+        child.close()
+        try:
+            self.info = self.conn.recv()
+        except EOFError:
+            self.proc.join()
+            raise ImportError(f"engine {name!r} could not be started in a child process") from None
+
+    def call(self, op: str, payload):
+        try:
+            self.conn.send((op, payload))
+            status, value = self.conn.recv()
+        except (EOFError, BrokenPipeError, ConnectionResetError):
+            self.proc.join(timeout=5)
+            raise WorkerDied from None
+        if status == "error":
+            raise RuntimeError(value)
+        return value
+
+    def stop(self) -> None:
+        try:
+            self.conn.send(("stop", None))
+        except (BrokenPipeError, OSError):
+            pass
+        self.proc.join(timeout=5)
+        if self.proc.is_alive():
+            self.proc.kill()
+        self.conn.close()
+
+
+class IsolatedPair(PreparedPair):
+    def __init__(self, engine: "IsolatedEngine", a, b):
+        self._engine = engine
+        self._shapes = (a, b)  # pickled across the pipe (spq shapes are plain arrays)
+        self._prepare()
+
+    def _prepare(self) -> None:
+        try:
+            self._engine.worker().call("prepare", self._shapes)
+        except WorkerDied:
+            self._engine.restart()
+            raise RuntimeError("the engine's process died while loading the bodies") from None
+
+    def _run(self, op: str, payload):
+        """The child's answer, or None if it died (a fresh child then holds this pair again)."""
+        try:
+            return self._engine.worker().call(op, payload)
+        except WorkerDied:
+            self._engine.restart()
+            self._prepare()
+            return None
+
+    def _query(self, pose_a, pose_b) -> EngineResult:
+        out = self._run("query", (pose_a, pose_b))
+        if out is None:
+            return failed_result(CRASHED)
+        d, pa, pb, status, raw, message = out
+        return EngineResult(d, pa, pb, status, raw, message)
+
+    def query_many(self, poses_a, poses_b) -> BatchResult:
+        poses_a, poses_b = self._check_batches(poses_a, poses_b)
+        out = BatchResult.empty(len(poses_a))
+        self._fill(out, poses_a, poses_b, np.arange(len(poses_a)))
+        return out
+
+    def _fill(self, out: BatchResult, poses_a, poses_b, rows: np.ndarray) -> None:
+        """Answer ``rows`` in one call; if the child dies, in halves, down to the rows that kill it
+        (left "failed", as BatchResult.empty made them)."""
+        if len(rows) == 0:
+            return
+        got = self._run("query_many", (poses_a[rows], poses_b[rows]))
+        if got is not None:
+            out.distance[rows], out.point_a[rows], out.point_b[rows], out.status[rows], out.raw_distance[rows] = got
+            return
+        if len(rows) == 1:
+            return
+        half = len(rows) // 2
+        self._fill(out, poses_a, poses_b, rows[:half])
+        self._fill(out, poses_a, poses_b, rows[half:])
+
+
+class IsolatedEngine(Engine):
+    """The registered engine ``name`` (or the plugin "module:Class" registered as ``name`` in the
+    child), served from a child process (see the module docstring)."""
+
+    def __init__(self, name: str, plugin: str | None = None):
+        self.name = name
+        self._plugin = plugin
+        self._worker = None
+        w = self.worker()
+        self.tolerance, self.gives_depth, self._version = w.info
+
+    def worker(self) -> _Worker:
+        if self._worker is None:
+            self._worker = _Worker(self.name, self._plugin)
+        return self._worker
+
+    def restart(self) -> None:
+        if self._worker is not None:
+            self._worker.stop()
+        self._worker = None
+
+    def prepare(self, a, b) -> IsolatedPair:
+        return IsolatedPair(self, a, b)
+
+    def version(self) -> str:
+        return self._version
+
+    def close(self) -> None:
+        self.restart()
