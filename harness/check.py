@@ -501,6 +501,7 @@ def history_chart(table: pd.DataFrame, path) -> Path:
     for engine, g in counts.groupby("engine", sort=False):
         y = g.groupby("run").value.sum().reindex(runs)
         ax2.plot(runs, y.to_numpy(dtype=float), marker="o", label=engine)
+    ax2.set_yscale("symlog", linthresh=1.0)  # a few cases of one engine beside hundreds of another's
     ax2.set_title("wrong + failed + missed bounds (count)")
     speed = table[table.kind == "ratio"]
     for (engine, metric), g in speed.groupby(["engine", "metric"], sort=False):
