@@ -379,10 +379,10 @@ def judge(now: Metric, base: Metric | None, speed: str = "strict", floor: float 
 
 
 def compare(now: list[Metric], base: list[Metric], ran: set[str], speed: str = "strict",
-            floor: float = SPEED_FLOOR) -> pd.DataFrame:
+            floor: float = SPEED_FLOOR, sections=SECTIONS) -> pd.DataFrame:
     """The diff table: one row per metric key in either run (engine, check, metric, baseline, now,
-    verdict, rule). A baseline metric missing now is a regression if its engine ran (a check that
-    silently disappeared), else 'missing' (the engine was not asked for)."""
+    verdict, rule). A baseline metric missing now is a regression if its engine and its section
+    ran (a check that silently disappeared), else 'missing' (not asked for)."""
     bmap = {m.key: m for m in base}
     rows = []
     for m in now:
@@ -392,7 +392,8 @@ def compare(now: list[Metric], base: list[Metric], ran: set[str], speed: str = "
     seen = {m.key for m in now}
     for b in base:
         if b.key not in seen:
-            verdict = REGRESSION if b.engine in ran and b.kind != "info" else MISSING
+            asked = b.engine in ran and b.check.split("/")[0] in sections
+            verdict = REGRESSION if asked and b.kind != "info" else MISSING
             rows.append((b.engine, b.check, b.metric, b.kind, b.value, math.nan, verdict,
                          "in the baseline, not measured now"))
     return pd.DataFrame(rows, columns=["engine", "check", "metric", "kind", "baseline", "now", "verdict", "rule"])

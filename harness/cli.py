@@ -636,7 +636,8 @@ def cmd_check(args) -> int:
     (Path(args.out) / "check_diff.csv").unlink(missing_ok=True)  # a diff of an earlier run must not linger
     diff = None
     if baseline is not None:
-        diff = ck.compare(metrics, ck.metrics_of(baseline), set(engines), args.speed, args.speed_floor)
+        diff = ck.compare(metrics, ck.metrics_of(baseline), set(engines), args.speed, args.speed_floor,
+                          config.sections)
         diff.to_csv(Path(args.out) / "check_diff.csv", index=False)
         shown = diff[~diff.verdict.isin([ck.OK, ck.INFO])]
         if len(shown):

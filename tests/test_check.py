@@ -64,6 +64,8 @@ def test_compare_missing_and_new_metrics():
     assert verdict[("fcl", "failed")] == ck.MISSING  # not asked for
     assert verdict[("spq", "wrong_status")] == ck.NEW
     assert ck.exit_code(diff) == 1
+    other = ck.compare(now, base, ran={"spq"}, sections=("speed",))  # the accuracy section did not run
+    assert set(other.verdict) == {ck.MISSING, ck.NEW}
 
 
 def test_junit_parses_with_a_junit_library(tmp_path):
