@@ -329,3 +329,26 @@ def test_isolated_engine_survives_native_crashes():
     assert (got.status[over] == "failed").all()
     np.testing.assert_array_equal(got.distance[~over], truth.distance[~over])
     assert one.status == "failed" and one.message == CRASHED
+
+
+@pytest.mark.engines
+def test_isolated_engine_gives_the_engines_own_answers():
+    """Served from a child process, coal answers bit for bit as in-process (results cross the pipe as
+    they are)."""
+    from datasets import load_object
+    from harness.engines.isolated import IsolatedEngine
+    from harness.poses import random_poses
+
+    a, b = load_object("kuka_link_4"), load_object("panda_link_2")
+    pa, pb = random_poses(50, 1, 0.12)
+    direct = available_engines(["coal"])["coal"]
+    isolated = IsolatedEngine("coal")
+    try:
+        want = direct.prepare(a, b).query_many(pa, pb)
+        got = isolated.prepare(a, b).query_many(pa, pb)
+    finally:
+        isolated.close()
+        direct.close()
+    for field in ("distance", "point_a", "point_b", "status", "raw_distance"):
+        np.testing.assert_array_equal(getattr(got, field), getattr(want, field))
+    assert isolated.tolerance == direct.tolerance and isolated.gives_depth == direct.gives_depth
