@@ -46,7 +46,6 @@ import numpy as np
 import pandas as pd
 
 SECTIONS = ("accuracy", "oracle", "stability", "speed")
-NATIVE = ("fcl", "coal", "bullet", "bullet-margin")  # built-in engines judged in child processes
 FORMAT = "spq-check/1"
 NOISE_FACTOR = 4.0
 SPEED_FLOOR = 0.3  # default least threshold: a ratio more than 30% below its baseline
@@ -214,6 +213,8 @@ def run_check(config: CheckConfig, engines: dict, load_object, progress: bool = 
 
     metrics: list[Metric] = []
     tables: dict = {}
+    from harness.engines.isolated import isolated
+
     judged = isolated(engines) if {"accuracy", "stability"} & set(config.sections) else {}
     try:
         if "accuracy" in config.sections:
@@ -243,15 +244,6 @@ def run_check(config: CheckConfig, engines: dict, load_object, progress: bool = 
             raise ValueError(f"the speed check needs its peer engine {config.peer!r} (--peer); running: {list(engines)}")
         metrics += _speed(config, engines, load_object, progress, tqdm)
     return metrics, tables
-
-
-def isolated(engines: dict) -> dict:
-    """The engines to judge: the built-in native ones (NATIVE) served from child processes, so that
-    a native crash fails its queries instead of ending the run (harness.engines.isolated); the
-    others (spq, plugins) as they are."""
-    from harness.engines.isolated import IsolatedEngine
-
-    return {name: IsolatedEngine(name) if name in NATIVE and not _is_spq(e) else e for name, e in engines.items()}
 
 
 def _is_spq(engine) -> bool:

@@ -33,76 +33,17 @@ def _with_plugins(names: list[str] | None, specs: list[str] | None) -> list[str]
 
 
 def cmd_crosscheck(args) -> int:
-    from datasets import DEFAULT_OBJECTS, load_object
-    from harness import crosscheck as cc
-    from harness.report.meta import run_metadata
-    from harness.report.tables import write_table
+    from harness.suites import write_output
+    from harness.suites import crosscheck as suite
 
     start = time.perf_counter()
-    config = cc.CrosscheckConfig(objects=args.objects or DEFAULT_OBJECTS, per_bucket=args.per_bucket,
-                                 seed=args.seed, engines=_with_plugins(args.engines, args.engine),
-                                 buckets=args.buckets)
-    from harness.check import isolated
-    from harness.engines import available_engines
-
-    plain = available_engines(config.engines)
-    engines = isolated(plain)  # a native engine's crash fails its queries, not the run
-    try:
-        table = cc.run(config, load_object, progress=not args.quiet, engines=engines)
-    finally:
-        for engine in {id(e): e for e in [*plain.values(), *engines.values()]}.values():
-            engine.close()
-    summary = cc.summarize(table)
-    totals = cc.summarize(table, by=("engine",))
-    worst = cc.worst_cases(table)
-    meta = run_metadata(command="spq crosscheck", seed=args.seed, per_bucket=args.per_bucket,
-                        objects=config.objects, spq_tol_abs=DEFAULT_TOL_ABS, spq_tol_rel=DEFAULT_TOL_REL,
-                        coal_gjk_tolerance=1e-8, ambiguous_band_m=cc.AMBIGUOUS_BAND,
-                        queries=len(table), seconds=round(time.perf_counter() - start, 1))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "crosscheck.csv.gz", index=False)
-    notes = ("Errors are reported distance minus the exact reference distance (closest point of the "
-             "Minkowski-difference hull; 0 when overlapping), in metres; relative errors and witness checks on "
-             "separated poses only (reference distance > 1e-9 m). false_overlaps: separated by more than "
-             "1e-9 m but reported overlapping; missed_overlaps: overlapping by more than 1e-9 m but reported "
-             "separated or touching. mean_signed_error shows a bias (pybullet's default margin: about -2 mm).")
-    write_table(summary, out, "crosscheck_summary", "Cross-check per engine and bucket", meta, notes)
-    write_table(totals, out, "crosscheck_engines", "Cross-check per engine", meta, notes)
-    write_table(worst, out, "crosscheck_worst", "Worst cases per engine (largest absolute errors)", meta)
-    depth, depth_worst = cc.depth_summary(table), cc.depth_worst_cases(table)
-    depth_notes = ("Signed distance (minus the penetration depth when overlapping) against the exact reference's, on "
-                   "the touching and overlap buckets: depth error = the engine's raw signed distance - the "
-                   "reference's (m). sign_errors: on the wrong side of the +-1e-9 m band. Witness checks on the "
-                   "overlaps: | |p_B - p_A| - depth | and the points' distance from their hulls' surfaces. "
-                   "certificate_holds_pct: spq's [lower, upper] holds the reference. coal and python-fcl run with "
-                   "signed distance on, pybullet with margin 0 ('bullet') and its default 1 mm margin per shape "
-                   "('bullet-margin', a 2 mm bias); spq with signed=True.")
-    write_table(depth, out, "crosscheck_depth", "Penetration depth per engine and bucket", meta, depth_notes)
-    write_table(depth_worst, out, "crosscheck_depth_worst", "Worst depth errors per engine", meta, depth_notes)
-    if args.agreement_poses > 0:
-        agree = cc.agreement(config.objects, args.agreement_poses, args.seed, load_object, progress=not args.quiet)
-        write_table(agree, out, "crosscheck_agreement", "spq against coal on random poses", meta,
-                    f"spq batched and coal (gjk_tolerance 1e-8) on the same random poses; distances compared on "
-                    f"poses both call separated, statuses outside a {cc.AGREEMENT_TOL:g} m band around contact.")
-        print(f"\nspq vs coal on {int(agree.poses.sum())} random poses ({int(agree.results.sum())} results): "
-              f"max |difference| {agree.max_abs_difference.max():.2g} m, {int(agree.over_tolerance.sum())} over "
-              f"{cc.AGREEMENT_TOL:g} m, {int(agree.status_disagreements.sum())} status disagreements, "
-              f"{int(agree.spq_failed.sum())} spq failures")
-    print(f"\n{len(table)} query results, {len(table.engine.unique())} engines, "
-          f"{len(table) // max(len(table.engine.unique()), 1)} poses\n")
-    print("Per engine and bucket (errors in m; relative errors on separated poses):")
-    _print(summary[["engine", "bucket", "n", "max_abs_error", "median_abs_error", "max_rel_error",
-                    "median_rel_error", "mean_signed_error", "false_overlaps", "missed_overlaps", "failures"]])
-    print("\nPer engine:")
-    _print(totals[["engine", "n", "max_abs_error", "median_abs_error", "max_rel_error", "mean_signed_error",
-                   "max_witness_gap_error", "max_witness_off_surface", "false_overlaps", "missed_overlaps",
-                   "failures"]])
-    print("\nWorst cases:")
-    _print(worst)
-    print("\nPenetration depth (signed distance against the reference's; touching and overlap buckets):")
-    _print(depth)
-    print(f"\nwrote {out}/crosscheck.csv.gz, crosscheck_summary.*, crosscheck_engines.*, crosscheck_worst.* "
+    config = suite.Config(objects=args.objects, per_bucket=args.per_bucket, seed=args.seed,
+                          engines=_with_plugins(args.engines, args.engine), buckets=args.buckets,
+                          agreement_poses=args.agreement_poses, progress=not args.quiet)
+    output = suite.run(config)
+    write_output(output, Path(args.out))
+    print("\n".join(output.lines))
+    print(f"\nwrote {args.out}/crosscheck.csv.gz, crosscheck_summary.*, crosscheck_engines.*, crosscheck_worst.* "
           f"in {time.perf_counter() - start:.0f} s")
     return 0
 

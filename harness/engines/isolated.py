@@ -26,6 +26,7 @@ from harness.engines.base import (
 )
 
 CRASHED = "the engine's process died on this query (a native crash)"
+NATIVE = ("fcl", "coal", "bullet", "bullet-margin")  # the built-in engines of native code, judged in children
 
 
 def _serve(conn, name: str, plugin: str | None) -> None:
@@ -190,3 +191,13 @@ class IsolatedEngine(Engine):
 
     def close(self) -> None:
         self.restart()
+
+
+def isolated(engines: dict) -> dict:
+    """The engines to judge: the built-in native ones (NATIVE) served from child processes, so that a
+    native crash fails its queries instead of ending the run; the others (spq, plugins) as they are.
+    The caller closes both the given engines and the returned ones."""
+    def builtin(e) -> bool:  # not a plugin registered under a built-in name
+        return type(e).__module__.startswith("harness.engines.")
+
+    return {name: IsolatedEngine(name) if name in NATIVE and builtin(e) else e for name, e in engines.items()}
