@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import asdict
 import sys
 import time
 from pathlib import Path
@@ -18,9 +19,9 @@ DEFAULT_OUT = Path("reports")
 
 
 def _print(df: pd.DataFrame) -> None:
-    with pd.option_context("display.max_rows", 500, "display.width", 200, "display.max_columns", 30,
-                           "display.float_format", lambda v: f"{v:.3g}"):
-        print(df.to_string(index=False))
+    from harness.suites import frame_lines
+
+    print("\n".join(frame_lines(df)))
 
 
 def _with_plugins(names: list[str] | None, specs: list[str] | None) -> list[str] | None:
@@ -551,17 +552,16 @@ def cmd_check(args) -> int:
         print(f"spq check: error: an engine asked for cannot be built: {exc}", file=sys.stderr)
         return 2
     baseline = ck.load_results(args.baseline) if args.baseline else None
-    if baseline is not None and baseline["meta"].get("config", {}).get("sections") is not None:
-        b = baseline["meta"]["config"]
-        mine = {"seed": args.seed, "per_bucket": args.per_bucket, "oracle_per_bucket": args.oracle_per_bucket,
-                "speed_poses": args.speed_poses, "speed_rounds": args.speed_rounds, "peer": args.peer}
-        differ = {k: (b.get(k), v) for k, v in mine.items() if b.get(k) != v}
-        if differ:
-            print(f"spq check: note: the baseline ran with other settings {differ} (baseline, now); its figures "
-                  "are not comparable one for one", file=sys.stderr)
     config = ck.CheckConfig(seed=args.seed, per_bucket=args.per_bucket, oracle_per_bucket=args.oracle_per_bucket,
                             speed_poses=args.speed_poses, speed_rounds=args.speed_rounds, peer=args.peer,
                             sections=tuple(args.sections))
+    if baseline is not None:
+        before = baseline["meta"].get("config", {})
+        differ = {k: (before.get(k), v) for k, v in asdict(config).items()
+                  if k != "sections" and before.get(k) != (list(v) if isinstance(v, tuple) else v)}
+        if differ:
+            print(f"spq check: note: the baseline ran with other settings {differ} (baseline, now); its figures "
+                  "are not comparable one for one", file=sys.stderr)
     if "speed" in config.sections and config.peer not in engines:
         print(f"spq check: error: the speed check times against {config.peer!r}, which is not running "
               f"(engines: {list(engines)}); add it or choose --peer", file=sys.stderr)

@@ -61,7 +61,7 @@ def check_section(out: Path) -> Section:
                     "per_call_speed_ratio": speed.value.iloc[0] if len(speed) else float("nan")})
     tables.append(("Per engine: counts of wrong, failed and missed-bound cases over all checks; the largest "
                    "PCH-PCH error; the per-call speed ratio to coal", pd.DataFrame(per)))
-    if (out / "check_diff.csv").exists():
+    if judged:
         diff = _read(out, "check_diff.csv")
         counts = diff.verdict.value_counts()
         paragraphs.append("Against the baseline: " + ", ".join(f"{k} {v}" for k, v in counts.items()) + ".")

@@ -50,9 +50,13 @@ class _MutantPair(SpqPair):
     def mutate(self, r: BatchResult) -> BatchResult:
         return r
 
+    def mutate_bounds(self, lower, upper):
+        """The certified bounds the mutant reports beside its answers (spq's own by default)."""
+        return lower, upper
+
     def query_many(self, poses_a, poses_b) -> BatchResult:
         r = self.mutate(super().query_many(poses_a, poses_b))
-        self.last_bounds = None
+        self.last_bounds = self.mutate_bounds(*self.last_bounds)
         return r
 
     def _query(self, pose_a, pose_b) -> EngineResult:
@@ -80,6 +84,9 @@ class _OffPair(_MutantPair):
         r.distance = np.where(r.distance > 0, r.distance + 1e-6, r.distance)
         r.raw_distance = r.raw_distance + 1e-6
         return r
+
+    def mutate_bounds(self, lower, upper):
+        return lower + 1e-6, upper + 1e-6
 
 
 class OffByMicron(_Mutant):

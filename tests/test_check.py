@@ -11,6 +11,7 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from harness import check as ck
@@ -149,6 +150,9 @@ def test_planted_accuracy_bug_fails(plugin, metric, accuracy_baseline, tmp_path,
     out = capsys.readouterr().out
     assert code == 1, out
     assert "REGRESSION" in out and metric in out
+    diff = pd.read_csv(tmp_path / "check_diff.csv")
+    assert (diff[diff.metric == metric].verdict == ck.REGRESSION).any()  # caught by the planted metric itself
+    assert not (diff.verdict == ck.MISSING).any()  # the mutant reports every metric the real engine does
     assert "<failure" in (tmp_path / "j.xml").read_text()
 
 
