@@ -41,6 +41,7 @@ class TradeoffConfig:
     buckets: tuple = SEPARATED_BUCKETS
     spq_tols: tuple = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-8, 1e-10, 1e-12)
     coal_tols: tuple = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-8, 1e-10)
+    mujoco_tols: tuple = (1e-2, 1e-3, 1e-4, 1e-6, 1e-8, 1e-10)  # ccd_tolerance; empty or no mujoco: none
     others: tuple = ("fcl", "bullet", "bullet-margin")
     repeats: int = 5
 
@@ -48,7 +49,7 @@ class TradeoffConfig:
 def quick_tradeoff_config(seed: int = 0, **overrides) -> TradeoffConfig:
     """A few seconds: 10 poses per bucket, three tolerances per engine, two repeats."""
     settings = dict(seed=seed, per_bucket=10, spq_tols=(1e-2, 1e-3, 1e-6, 1e-10), coal_tols=(1e-3, 1e-6, 1e-10),
-                    repeats=2)
+                    mujoco_tols=(1e-3, 1e-6, 1e-10), repeats=2)
     settings.update(overrides)
     return TradeoffConfig(**settings)
 
@@ -75,6 +76,8 @@ def _measure(pair, fn, suite, repeats: int) -> dict:
 
 def run_tradeoff(config: TradeoffConfig, load_object, progress: bool = False):
     """(table with one row per engine, mode and tolerance; the pose suite)."""
+    import importlib.util
+
     from tqdm import tqdm
 
     from harness.engines import available_engines
@@ -85,6 +88,8 @@ def run_tradeoff(config: TradeoffConfig, load_object, progress: bool = False):
     a, b = load_object(config.object_a), load_object(config.object_b)
     suite = bucket_suite(a, b, config.per_bucket, config.seed, buckets=list(config.buckets))
     jobs = [("spq", t) for t in config.spq_tols] + [("coal", t) for t in config.coal_tols]
+    if config.mujoco_tols and importlib.util.find_spec("mujoco") is not None:
+        jobs += [("mujoco", t) for t in config.mujoco_tols]
     jobs += [(name, None) for name in config.others]
     others = available_engines(list(config.others)) if config.others else {}
     rows = []
@@ -94,6 +99,10 @@ def run_tradeoff(config: TradeoffConfig, load_object, progress: bool = False):
                 engine = SpqEngine(tol=tol, rel_tol=tol)
             elif name == "coal":
                 engine = CoalEngine(tolerance=tol)
+            elif name == "mujoco":
+                from harness.engines.mujoco_engine import MujocoEngine
+
+                engine = MujocoEngine(tolerance=tol)
             else:
                 engine = others[name]
             pair = engine.prepare(a, b)

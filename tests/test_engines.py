@@ -28,17 +28,17 @@ from spq.shapes.polyhedron import Polyhedron
 
 pytestmark = pytest.mark.engines
 
-ENGINES = ["fcl", "coal", "bullet", "bullet-margin"]
+ENGINES = ["fcl", "coal", "bullet", "bullet-margin", "mujoco"]
 HALF = np.array([0.5, 0.3, 0.2])  # m, half extents of both boxes
 GAP = 0.3  # m
 DEPTH = 0.1  # m
 BULLET_DEFAULT_MARGIN = 1e-3  # m per body, pybullet's default for convex hulls
 
 # Accuracy each engine is held to on the boxes (absolute m, or relative for "bullet").
-DIST_ABS_TOL = {"fcl": 1e-6, "coal": 1e-6, "bullet": 1e-4 * GAP, "bullet-margin": 3e-3}
+DIST_ABS_TOL = {"fcl": 1e-6, "coal": 1e-6, "mujoco": 1e-6, "bullet": 1e-4 * GAP, "bullet-margin": 3e-3}
 # Where each engine's witness points may sit off the true faces (m): bullet-margin's lie on the
 # margin-inflated surface, 1 mm outside.
-POINT_TOL = {"fcl": 1e-6, "coal": 1e-6, "bullet": 1e-4 * GAP, "bullet-margin": 1.5e-3}
+POINT_TOL = {"fcl": 1e-6, "coal": 1e-6, "mujoco": 1e-6, "bullet": 1e-4 * GAP, "bullet-margin": 1.5e-3}
 
 
 def box(half: np.ndarray) -> Polyhedron:
@@ -198,7 +198,12 @@ def _break_bullet(monkeypatch, pair):
     monkeypatch.setattr(bullet_engine.p, "getClosestPoints", _raise)
 
 
-BREAKERS = {"fcl": _break_fcl, "coal": _break_coal, "bullet": _break_bullet, "bullet-margin": _break_bullet}
+def _break_mujoco(monkeypatch, pair):
+    monkeypatch.setattr(pair, "_distance", _raise)
+
+
+BREAKERS = {"fcl": _break_fcl, "coal": _break_coal, "bullet": _break_bullet, "bullet-margin": _break_bullet,
+            "mujoco": _break_mujoco}
 
 
 @pytest.mark.parametrize("name", ENGINES)
@@ -352,3 +357,17 @@ def test_isolated_engine_gives_the_engines_own_answers():
     for field in ("distance", "point_a", "point_b", "status", "raw_distance"):
         np.testing.assert_array_equal(getattr(got, field), getattr(want, field))
     assert isolated.tolerance == direct.tolerance and isolated.gives_depth == direct.gives_depth
+
+
+def test_mujoco_reports_its_pipeline_and_a_distance_beyond_distmax_as_failed(boxes):
+    from harness.engines.mujoco_engine import MujocoEngine
+
+    native, libccd = MujocoEngine(), MujocoEngine(nativeccd=False, distmax=0.1)
+    assert native.settings()["pipeline"] == "native GJK/EPA" and libccd.settings()["pipeline"] == "libccd"
+    assert "native ccd" in native.version() and "libccd" in libccd.version()
+    pose_a, pose_b = box_scene(HALF[0] + GAP + HALF[1], np.eye(4))
+    assert abs(libccd.prepare(*boxes).query(*box_scene(HALF[0] + 0.05 + HALF[1], np.eye(4))).distance - 0.05) < 1e-6
+    far = libccd.prepare(*boxes).query(pose_a, pose_b)  # 0.3 m apart, beyond distmax
+    assert far.status == "failed" and "distmax" in far.message
+    with pytest.raises(ValueError, match="distmax"):
+        MujocoEngine(distmax=0.0)

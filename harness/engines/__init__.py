@@ -26,6 +26,7 @@ _ENGINE_CLASSES = {  # exported class -> module, imported on first use
     "FclEngine": "harness.engines.fcl_engine",
     "CoalEngine": "harness.engines.coal_engine",
     "BulletEngine": "harness.engines.bullet_engine",
+    "MujocoEngine": "harness.engines.mujoco_engine",
 }
 
 
@@ -65,12 +66,19 @@ def _bullet_margin() -> Engine:
     return BulletEngine(margin=None, name="bullet-margin")
 
 
+def _mujoco() -> Engine:
+    from harness.engines.mujoco_engine import MujocoEngine
+
+    return MujocoEngine()
+
+
 ENGINE_FACTORIES: dict[str, EngineFactory] = {
     "spq": _spq,
     "fcl": _fcl,
     "coal": _coal,
     "bullet": _bullet,  # collision margin 0
     "bullet-margin": _bullet_margin,  # pybullet's default margin, to show its bias
+    "mujoco": _mujoco,  # mj_geomDistance, native GJK/EPA
 }
 
 

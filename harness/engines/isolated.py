@@ -26,7 +26,7 @@ from harness.engines.base import (
 )
 
 CRASHED = "the engine's process died on this query (a native crash)"
-NATIVE = ("fcl", "coal", "bullet", "bullet-margin")  # the built-in engines of native code, judged in children
+NATIVE = ("fcl", "coal", "bullet", "bullet-margin", "mujoco")  # the built-in engines of native code, judged in children
 
 
 def _serve(conn, name: str, plugin: str | None) -> None:
