@@ -1,5 +1,8 @@
 """``spq check``: the harness as a gate. A fixed-seed run of every engine, judged against a baseline.
 
+This module holds the metrics, rules, files and verdicts; harness/suites/check.py runs the check
+by composing the crosscheck, stability and depth suites and the speed rounds below.
+
 A check run measures, with every engine it is given and at fixed seeds:
 
 - accuracy (PCH-PCH, every engine): per distance bucket, the largest error against the exact
@@ -205,55 +208,18 @@ def speed_metrics(times: dict, peer_key, queries: int) -> list[Metric]:
     return out
 
 
-def run_check(config: CheckConfig, engines: dict, load_object, progress: bool = True) -> tuple[list[Metric], dict]:
-    """(metrics, tables by section) of one check run with the given {name: Engine} (not closed here)."""
-    from tqdm import tqdm
-
-    from harness import crosscheck as cc
-
-    metrics: list[Metric] = []
-    tables: dict = {}
-    from harness.engines.isolated import isolated
-
-    judged = isolated(engines) if {"accuracy", "stability"} & set(config.sections) else {}
-    try:
-        if "accuracy" in config.sections:
-            cfg = cc.CrosscheckConfig(objects=list(config.objects), per_bucket=config.per_bucket, seed=config.seed)
-            tables["accuracy"] = cc.run(cfg, load_object, progress=progress, engines=judged)
-            metrics += accuracy_metrics(tables["accuracy"])
-        if "stability" in config.sections:
-            from harness import stability as st
-
-            scfg = st.StabilityConfig(seed=config.seed, quick=True)
-            cases = st.build_cases(scfg, load_object) + st.penetration_cases(scfg, load_object)
-            tables["stability"] = st.run_cases(cases, judged, progress=False)
-            metrics += stability_metrics(tables["stability"])
-    finally:
-        for name, e in judged.items():
-            if e is not engines[name]:
-                e.close()
-    if "oracle" in config.sections and any(_is_spq(e) for e in engines.values()):
-        from harness import depth_oracle as do
-
-        dcfg = do.DepthConfig(object_name=config.speed_object, per_bucket=config.oracle_per_bucket,
-                              stp_per_bucket=config.oracle_per_bucket, seed=config.seed)
-        tables["oracle"] = do.run(dcfg, load_object, progress=progress)
-        metrics += oracle_metrics(tables["oracle"])
-    if "speed" in config.sections:
-        if config.peer not in engines:
-            raise ValueError(f"the speed check needs its peer engine {config.peer!r} (--peer); running: {list(engines)}")
-        metrics += _speed(config, engines, load_object, progress, tqdm)
-    return metrics, tables
-
-
-def _is_spq(engine) -> bool:
+def is_spq(engine) -> bool:
     from harness.engines.spq_engine import SpqEngine
 
     return isinstance(engine, SpqEngine)
 
 
-def _speed(config: CheckConfig, engines: dict, load_object, progress: bool, tqdm) -> list[Metric]:
+def speed_section(config: CheckConfig, engines: dict, progress: bool = False) -> list[Metric]:
+    """Speed ratios to the peer: every engine's PCH, STP and CSE jobs timed in interleaved rounds."""
+    from tqdm import tqdm
+
     import spq
+    from datasets import load_object
     from harness.poses import random_poses
 
     pch = load_object(config.speed_object)
@@ -320,10 +286,15 @@ def load_results(path) -> dict:
     return doc
 
 
+def results_text(doc: dict) -> str:
+    """The results file's text (JSON)."""
+    return json.dumps(doc, indent=1, default=_json_default) + "\n"
+
+
 def save_results(doc: dict, path) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(doc, indent=1, default=_json_default) + "\n")
+    path.write_text(results_text(doc))
 
 
 def _json_default(x):
@@ -423,15 +394,20 @@ def junit_xml(metrics: list[Metric], diff: pd.DataFrame | None, seconds: float) 
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
 
 
-def append_history(doc: dict, path) -> None:
-    """Append one line (JSON) to the history file: the run's commit, date, machine and metrics."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+def history_line(doc: dict) -> str:
+    """One line (JSON) of a history file: the run's commit, date, machine and metrics."""
     meta = doc["meta"]
     entry = {"commit": meta.get("commit", "unknown"), "date": meta.get("date"), "machine": meta.get("machine"),
              "host": platform.node(), "metrics": doc["metrics"]}
+    return json.dumps(entry, default=_json_default) + "\n"
+
+
+def append_history(doc: dict, path) -> None:
+    """Append the run to the history file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("a") as f:
-        f.write(json.dumps(entry, default=_json_default) + "\n")
+        f.write(history_line(doc))
 
 
 def load_history(path) -> pd.DataFrame:

@@ -1,8 +1,8 @@
 """`spq report`: run the suites, then assemble index.html and REPORT.md from what they wrote.
 
-Each suite is run through its own command (in this process) into the output folder, and its section
-is built from the files it wrote, with readings computed from the numbers. ``quick`` shrinks every
-suite so that the whole report takes a few minutes (it is what CI runs).
+Each suite of harness/suites runs with the report's config (in this process), its output is written
+into the output folder, and its section is built from the files written, with readings computed
+from the numbers. ``quick`` shrinks every suite so that the whole report takes a few minutes.
 """
 
 from __future__ import annotations
@@ -21,22 +21,26 @@ from harness.report.meta import run_metadata
 @dataclass
 class Suite:
     name: str
-    args: Callable[[bool], list[str]]  # quick -> command-line arguments (without --out)
+    module: str  # the suite's module in harness.suites (run(config) -> Output)
+    config: Callable[[bool, int, Path], object]  # (quick, seed, output folder) -> the suite's config
     section: Callable[[Path], Section]
-    ok_codes: tuple = (0,)  # exit codes that still make a section (spq check's 1: a regression, shown)
-    args_in: Callable[[Path], list[str]] | None = None  # more arguments naming files in the output folder
 
 
 CHECK_BASELINE = Path(__file__).resolve().parent.parent / ".ci" / "check-baseline.json"
 
 
-def check_args(quick: bool) -> list[str]:
+def check_config(quick: bool, seed: int, out: Path):
     """spq check against the committed baseline (if this is a source checkout), speed advisory, the
     run appended to the report's history."""
+    from harness.check import CheckConfig
+    from harness.suites import check
+
+    history = str(out / "check_history.jsonl")
     if quick:  # smaller than the baseline's run: nothing to compare with
-        return ["check", "--quiet", "--per-bucket", "26", "--oracle-per-bucket", "1", "--speed-poses", "500"]
-    args = ["check", "--quiet", "--speed", "advisory"]
-    return args + (["--baseline", str(CHECK_BASELINE)] if CHECK_BASELINE.exists() else [])
+        return check.Config(CheckConfig(seed=seed, per_bucket=26, oracle_per_bucket=1, speed_poses=500),
+                            history=history)
+    return check.Config(CheckConfig(seed=seed), speed="advisory", history=history,
+                        baseline=str(CHECK_BASELINE) if CHECK_BASELINE.exists() else None)
 
 
 def check_section(out: Path) -> Section:
@@ -330,36 +334,51 @@ def robot_section(out: Path) -> Section:
     return Section("Robot scene: whole-body self-distance", paragraphs, tables, charts)
 
 
+def _config(module: str, **fixed) -> Callable[[bool, int, Path], object]:
+    """(quick, seed, out) -> module's Config with the fixed fields: a dict as a field's value holds its
+    quick setting under True and its full one under False (None: the suite's default); a callable is
+    called when the config is made."""
+    def make(quick: bool, seed: int, out: Path):
+        import importlib
+
+        cls = importlib.import_module(f"harness.suites.{module}").Config
+        chosen = {k: (v[quick] if isinstance(v, dict) else v() if callable(v) else v) for k, v in fixed.items()}
+        return cls(seed=seed, **{k: v for k, v in chosen.items() if v is not None})
+    return make
+
+
 SUITES = [
-    Suite("crosscheck", lambda q: ["crosscheck", "--quiet"] + (["--per-bucket", "26", "--agreement-poses", "20000"]
-                                                                if q else []),
-          crosscheck_section),
-    Suite("bench pch", lambda q: ["bench", "pch", "--quiet"] + (["--poses", "2000", "--repeats", "1"] if q else []),
+    Suite("crosscheck", "crosscheck", _config("crosscheck", per_bucket={True: 26, False: None},
+                                              agreement_poses={True: 20000, False: None}), crosscheck_section),
+    Suite("bench pch", "bench", _config("bench", kind="pch", poses={True: 2000, False: None},
+                                        repeats={True: 1, False: None}),
           lambda out: bench_section(out, "pch", "Throughput, PCH-PCH (every engine)")),
-    Suite("bench stp", lambda q: ["bench", "stp", "--quiet"] + (["--poses", "2000", "--repeats", "1"] if q else []),
+    Suite("bench stp", "bench", _config("bench", kind="stp", poses={True: 2000, False: None},
+                                        repeats={True: 1, False: None}),
           lambda out: bench_section(out, "stp", "Throughput with STP-BVs")),
-    Suite("bench-support", lambda q: ["bench-support", "--quiet"] + (["--directions", "2000", "--repeats", "1"] if q else []),
-          support_section),
-    Suite("table1", lambda q: ["bench", "table1", "--quiet"] + (["--poses", "2000", "--repeats", "1"] if q else []),
+    Suite("bench-support", "support", _config("support", directions={True: 2000, False: None},
+                                              repeats={True: 1, False: None}), support_section),
+    Suite("table1", "table1", _config("table1", poses={True: 2000, False: None}, repeats={True: 1, False: None}),
           table1_section),
-    Suite("continuity", lambda q: ["continuity"] + (["--quick"] if q else []), continuity_section),
-    Suite("tradeoff", lambda q: ["tradeoff"] + (["--quick"] if q else []), tradeoff_section),
-    Suite("rtradeoff", lambda q: ["rtradeoff"] + (["--quick"] if q else []), rtradeoff_section),
-    Suite("stability", lambda q: ["stability", "--quiet"] + (["--quick"] if q else []), stability_section),
-    Suite("depth", lambda q: ["depth", "--quiet"] + (["--per-bucket", "3", "--stp-per-bucket", "1"] if q else
-                                                     ["--per-bucket", "50"]),
+    Suite("continuity", "continuity", _config("continuity", quick={True: True, False: False}), continuity_section),
+    Suite("tradeoff", "tradeoff", _config("tradeoff", quick={True: True, False: False}), tradeoff_section),
+    Suite("rtradeoff", "rtradeoff", _config("rtradeoff", quick={True: True, False: False}), rtradeoff_section),
+    Suite("stability", "stability", _config("stability", quick={True: True, False: False}), stability_section),
+    Suite("depth", "depth", _config("depth", per_bucket={True: 3, False: 50}, stp_per_bucket={True: 1, False: None}),
           depth_section),
-    Suite("bench robot", lambda q: ["bench", "robot", "--quiet", "--robot", report_robot()] + (["--configs", "40", "--steps", "200", "--repeats",
-                                                                     "1", "--engine-configs", "10"] if q else []),
-          robot_section),
-    Suite("check", check_args, check_section, ok_codes=(0, 1),
-          args_in=lambda out: ["--history", str(out / "check_history.jsonl")]),
+    Suite("bench robot", "robot", _config("robot", robot=report_robot, configs={True: 40, False: None},
+                                          steps={True: 200, False: None}, repeats={True: 1, False: None},
+                                          engine_configs={True: 10, False: None}), robot_section),
+    Suite("check", "check", check_config, check_section),
 ]
 
 
 def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = None) -> list[Path]:
-    """Run the suites into out (quick: small settings) and render the report."""
-    from harness.cli import main
+    """Run the suites into out (quick: small settings) and render the report; each suite's terminal
+    lines are printed as it finishes (a regression found by the check is shown in its section)."""
+    import importlib
+
+    from harness.suites import write_output
 
     start = time.perf_counter()
     sections, timings = [], {}
@@ -367,9 +386,9 @@ def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = N
         if only and suite.name not in only:
             continue
         t0 = time.perf_counter()
-        code = main(suite.args(quick) + (suite.args_in(out) if suite.args_in else []) + ["--out", str(out)])
-        if code not in suite.ok_codes:
-            raise RuntimeError(f"suite {suite.name!r} failed with exit code {code}")
+        output = importlib.import_module(f"harness.suites.{suite.module}").run(suite.config(quick, seed, out))
+        write_output(output, out)
+        print(f"\n== {suite.name} ==", *output.lines, sep="\n")
         timings[suite.name] = round(time.perf_counter() - t0, 1)
         sections.append(suite.section(out))
     meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick,

@@ -441,13 +441,12 @@ def plot_engines(table: pd.DataFrame, engines: pd.DataFrame, path: Path) -> None
     save_figure(fig, path, "All pairs per configuration: spq policies against coal and python-fcl (PCH pairs)")
 
 
-def run(config: RobotBenchConfig, out_dir: Path, progress: bool = True) -> dict:
-    """Every table and figure of the robot benchmark into out_dir; returns the tables."""
+def run(config: RobotBenchConfig, progress: bool = True) -> dict:
+    """Every table of the robot benchmark, the scene's size, and under "figures" its charts as
+    (file name, draw(path)) pairs: a figure is drawn only when its caller writes it."""
     from datasets.robots import robot_files
     from harness.pybullet_kinematics import fk_errors
 
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     base = load_scene(config, "pch")
     randoms = random_configurations(base.model, config.configurations, config.seed)
     checked = randoms[:FK_CONFIGURATIONS]
@@ -476,8 +475,9 @@ def run(config: RobotBenchConfig, out_dir: Path, progress: bool = True) -> dict:
     continuity, tracks = continuity_table(scenes, fine)
     contact_rows, contact = contact_track(scenes, trajectory, config.r)
     continuity = pd.concat([continuity, pd.DataFrame(contact_rows)], ignore_index=True)
-    plot_distance_matrix(scenes["auto"], randoms[0], out_dir / "robot_distance_matrix.png", "auto")
-    plot_trajectory(tracks, out_dir / "robot_trajectory.png", contact)
-    plot_engines(table, engines, out_dir / "robot_engines.png")
+    auto, posture = scenes["auto"], randoms[0]
+    figures = [("robot_distance_matrix.png", lambda path: plot_distance_matrix(auto, posture, path, "auto")),
+               ("robot_trajectory.png", lambda path: plot_trajectory(tracks, path, contact)),
+               ("robot_engines.png", lambda path: plot_engines(table, engines, path))]
     return {"scene": table, "engines": engines, "continuity": continuity, "kinematics": kinematics, "signed": signed,
-            "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name}
+            "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name, "figures": figures}

@@ -32,7 +32,7 @@ from harness.poses import pose_matrix, random_rotations
 from harness.reference import MinkowskiReference, reference_distance
 
 AMBIGUOUS_BAND = 1e-9  # m
-ENGINES = ("spq", "fcl", "coal", "bullet", "bullet-margin")
+ENGINES = ("spq", "fcl", "coal", "bullet", "bullet-margin", "mujoco")
 EPS = np.finfo(float).eps
 
 # (absolute m, relative) tolerance each engine is judged by; see the module docstring and the MD notes
@@ -42,16 +42,18 @@ ENGINE_TOL = {
     "coal": (1e-8, 1e-8),  # gjk_tolerance set by the adapter
     "bullet": (1e-6, 1e-4),  # NOTES 6: ~1e-4 relative on curved hulls with margin 0
     "bullet-margin": (2e-3 + 1e-6, 1e-4),  # 1 mm default margin per shape: 2 mm bias accepted
+    "mujoco": (1e-6, 1e-6),  # MuJoCo's default ccd_tolerance
 }
 # (absolute m, relative) tolerance of each engine's penetration depth: spq's certificate; coal's
 # epa_tolerance (1e-6 by default); FCL's EPA (libccd, 1e-6, not exposed by python-fcl); Bullet's EPA
-# accuracy (1e-4, relative); the margin engine's 2 mm bias on top
+# accuracy (1e-4, relative); the margin engine's 2 mm bias on top; MuJoCo's ccd_tolerance (1e-6)
 ENGINE_DEPTH_TOL = {
     "spq": (spq.DEFAULT_TOL_ABS, spq.DEFAULT_TOL_REL),
     "fcl": (1e-6, 1e-6),
     "coal": (1e-6, 1e-6),
     "bullet": (1e-6, 1e-4),
     "bullet-margin": (2e-3 + 1e-6, 1e-4),
+    "mujoco": (1e-6, 1e-6),
 }
 DUALITY_TOLERANCES = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 DUALITY_TOLERANCES_QUICK = (1e-4, 1e-8, 1e-12)
@@ -63,6 +65,8 @@ class StabilityConfig:
     quick: bool = False
     engines: list[str] | None = None
     links: tuple[str, str] = ("kuka_link_4", "panda_link_2")
+    fcl_gap: bool = True  # the fcl_box_gap_3 family
+    coal_sweep: bool = True  # coal's DualityGap + Relative sweep (when coal runs)
 
     @property
     def n(self) -> int:  # random poses per (case, parameter)
@@ -401,25 +405,28 @@ def coal_sweep_cases(config: StabilityConfig, load_object) -> list[Case]:
 
 
 def run(config: StabilityConfig, load_object, progress: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(main table over all families and ENGINES, coal duality-gap sweep table)."""
+    """(main table over all families and ENGINES, coal duality-gap sweep table). The native engines
+    answer from child processes (harness.engines.isolated): a crash fails its queries, not the run."""
     from harness.engines import ENGINE_FACTORIES, available_engines
-    from harness.engines.spq_engine import SpqEngine
+    from harness.engines.isolated import isolated
 
     names = config.engines or [e for e in ENGINES if e in ENGINE_FACTORIES]
     engines = {}
     for name in names:
         try:
-            engines.update(available_engines([name]) if name != "spq" else {"spq": SpqEngine(signed=True)})
+            engines.update(available_engines([name]))
         except Exception as exc:  # a missing package drops its engine only
             print(f"engine {name} skipped: {exc}")
+    judged = isolated(engines)
     try:
-        cases = build_cases(config, load_object) + penetration_cases(config, load_object) + fcl_gap_cases(config)
-        table = run_cases(cases, engines, progress)
+        cases = (build_cases(config, load_object) + penetration_cases(config, load_object)
+                 + (fcl_gap_cases(config) if config.fcl_gap else []))
+        table = run_cases(cases, judged, progress)
     finally:
-        for e in engines.values():
-            e.close()
+        for engine in {id(e): e for e in [*engines.values(), *judged.values()]}.values():
+            engine.close()
     sweep = pd.DataFrame()
-    if "coal" in engines or config.engines is None:
+    if config.coal_sweep and ("coal" in engines or config.engines is None):
         try:
             dg = coal_dualitygap_engines(DUALITY_TOLERANCES_QUICK if config.quick else DUALITY_TOLERANCES)
             dg = {"coal": available_engines(["coal"])["coal"], **dg}
