@@ -322,6 +322,22 @@ def robot_section(out: Path) -> Section:
     tables = [("Forward kinematics against pybullet", _read(out, "robot_kinematics.csv")),
               ("All pairs per configuration", scene), ("Against coal and python-fcl", engines),
               ("Gradient continuity", cont)]
+    if (out / "robot_pinocchio.csv").exists():
+        pin = _read(out, "robot_pinocchio.csv")
+        ran = pin[pin.status == "ran"] if "status" in pin else pin.iloc[0:0]
+        if len(ran):
+            fastest = ran.sort_values("ms_per_config").iloc[0]
+            paragraphs.append(
+                f"pinocchio.computeDistances, the peer in its own best form (one C++ call per configuration over "
+                f"the same {int(fastest.pairs)} pairs with coal.Convex hulls, forward kinematics included): fastest "
+                f"variant {fastest.engine[len('pinocchio ('):-1]} at {fastest.ms_per_config:.3g} ms per configuration "
+                f"against spq pch {fastest.spq_pch_ms:.3g} ms ({fastest.spq_pch_speedup:.2f}x) and auto "
+                f"{fastest.spq_auto_ms:.3g} ms ({fastest.spq_auto_speedup:.2f}x; target 2x), timed in turn. Its "
+                f"distances agree with spq's PCH results to {ran.max_abs_diff_vs_spq_m.max():.2g} m on separated "
+                f"pairs, with {int(ran.overlap_disagreements.max())} overlap disagreements.")
+        else:
+            paragraphs.append(f"pinocchio: {pin.status.iloc[0]}.")
+        tables.append(("Against pinocchio.computeDistances", pin))
     if (out / "robot_signed.csv").exists():
         signed = _read(out, "robot_signed.csv")
         paragraphs.append("Signed distances (every pair cold; overlaps get minus their penetration depth), timed in "

@@ -208,6 +208,50 @@ def engine_table(config: RobotBenchConfig, scene: Scene, qs: np.ndarray, spq_out
     return pd.DataFrame(rows)
 
 
+def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_out: np.ndarray) -> pd.DataFrame:
+    """pinocchio.computeDistances (one C++ call per configuration over every pair, forward kinematics
+    included, coal.Convex hulls on the same links) in each of its coal GJK variants, timed in turn with
+    spq's cold pch and auto runs within each round (best of config.repeats per side), and its
+    distances against spq's PCH results (spq_out, cold at qs): separated pairs' largest difference,
+    and overlap verdicts that disagree outside a 1e-6 m band. An empty table's single row says why
+    pinocchio did not run."""
+    from datasets.robots import robot_files
+    from harness import pinocchio_peer as pp
+
+    try:
+        version = pp.version()
+    except ImportError as exc:
+        return pd.DataFrame([{"engine": "pinocchio", "status": f"not run: {exc}"}])
+    urdf = robot_files(config.robot).urdf
+    peers = {variant: pp.build(scenes["pch"], urdf, variant) for variant in pp.VARIANTS}
+    q_pin = [peers["default"].configuration(q) for q in qs]
+    spq_sides = {p: scenes[p] for p in ("pch", "auto") if p in scenes}
+    best = {name: np.inf for name in [*peers, *spq_sides]}
+    for _ in range(config.repeats):
+        for variant, peer in peers.items():
+            best[variant] = min(best[variant], peer.seconds(q_pin, 1))
+        for policy, scene in spq_sides.items():
+            best[policy] = min(best[policy], best_run(scene, qs, False, None, 1)[0])
+    spq_d = spq_out[:, :, OUT_DISTANCE]
+    separated = spq_out[:, :, OUT_STATUS] == SEPARATED
+    rows = []
+    for variant, peer in peers.items():
+        d = np.array([peer.distances(q) for q in q_pin])
+        diff = np.abs(d - spq_d)[separated]
+        band = 1e-6
+        disagree = ((spq_d < -band) & (d > band)) | ((spq_d > band) & (d < -band))
+        ms = 1e3 * best[variant] / len(qs)
+        rows.append({"engine": f"pinocchio ({variant})", "status": "ran", "version": version,
+                     "ms_per_config": ms, "spq_pch_ms": 1e3 * best.get("pch", np.nan) / len(qs),
+                     "spq_auto_ms": 1e3 * best.get("auto", np.nan) / len(qs),
+                     "spq_pch_speedup": best[variant] / best.get("pch", np.nan),
+                     "spq_auto_speedup": best[variant] / best.get("auto", np.nan),
+                     "max_abs_diff_vs_spq_m": float(diff.max()) if diff.size else np.nan,
+                     "overlap_disagreements": int(disagree.sum()), "pairs": len(peer.geometry.collisionPairs),
+                     "configurations": len(qs)})
+    return pd.DataFrame(rows)
+
+
 def gradient_track(scene: Scene, trajectory: np.ndarray, pairs: np.ndarray, signed: bool = False) -> dict:
     """Along the trajectory (coherent), the closest of ``pairs`` at each step, its distance and its
     distance gradient (steps, ndof) w.r.t. the joint values (signed: overlaps as minus their depth)."""
@@ -470,6 +514,7 @@ def run(config: RobotBenchConfig, progress: bool = True) -> dict:
     if "auto" not in scenes:
         scenes["auto"] = load_scene(config, "auto")
     signed = signed_rows({p: scenes[p] for p in config.policies if p in scenes}, randoms, config.repeats)
+    pinocchio = pinocchio_table(config, scenes, randoms[:m], pch_out[:m])
     # the continuity track: the first 1/CONTINUITY_ZOOM of a trajectory sampled CONTINUITY_ZOOM times finer
     fine = smooth_trajectory(base.model, config.steps * CONTINUITY_ZOOM, config.seed)[:config.steps]
     continuity, tracks = continuity_table(scenes, fine)
@@ -480,4 +525,5 @@ def run(config: RobotBenchConfig, progress: bool = True) -> dict:
                ("robot_trajectory.png", lambda path: plot_trajectory(tracks, path, contact)),
                ("robot_engines.png", lambda path: plot_engines(table, engines, path))]
     return {"scene": table, "engines": engines, "continuity": continuity, "kinematics": kinematics, "signed": signed,
-            "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name, "figures": figures}
+            "pinocchio": pinocchio, "bodies": len(base.bodies), "pairs": len(base.pairs), "robot": base.model.name,
+            "figures": figures}

@@ -71,10 +71,19 @@ def run(config: Config) -> Output:
               where + "Every pair cold at the random configurations, unsigned (an overlap is distance 0) and with "
               "signed=True (an overlap gets minus its penetration depth), the two timed in turn within each "
               f"round, best of {config.repeats} per block of {rb.TIMING_BLOCK}. deepest overlap: the least signed "
-              "distance of a configuration, over those with an overlap.")]
+              "distance of a configuration, over those with an overlap."),
+        Table("robot_pinocchio", "Robot scene: spq against pinocchio.computeDistances", tables["pinocchio"],
+              where + "pinocchio (its own URDF parser, fixed base) with the scene's PCH hulls as coal.Convex on the same "
+              "links and the same pairs; one pinocchio.computeDistances call per configuration (forward kinematics, "
+              "geometry placements and every pair's coal distance in C++), coal's gjk_tolerance 1e-6 and each GJK "
+              "variant: default, cached-guess (the previous result's guess), nesterov (Nesterov acceleration) and "
+              "both. Timed in turn with spq's cold pch and auto runs within each round, best of "
+              f"{config.repeats} per side. spq_*_speedup: pinocchio's time / spq's. max_abs_diff_vs_spq_m: over the "
+              "pair results spq's PCH run calls separated; overlap_disagreements: one side below -1e-6 m, the "
+              "other above 1e-6 m.")]
     out.lines = [*frame_lines(tables["kinematics"]), *frame_lines(tables["signed"]),
                  *frame_lines(tables["scene"][["policy", "configurations", "mode", "pruning_m", "ms_per_config",
                                                "pairs_per_s", "mean_iterations", "median_min_distance_m",
                                                "median_min_separated_m", "configs_with_overlap"]]),
-                 *frame_lines(tables["engines"]), *frame_lines(tables["continuity"])]
+                 *frame_lines(tables["engines"]), *frame_lines(tables["pinocchio"]), *frame_lines(tables["continuity"])]
     return out

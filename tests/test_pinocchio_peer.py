@@ -1,0 +1,50 @@
+"""The pinocchio peer: pinocchio's own URDF kinematics and coal distances on spq's scene, checked
+against spq's kinematics and spq's distances (two independent implementations)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pinocchio", reason="pin not installed (pip install pin)")
+
+from datasets.robots import robot_files  # noqa: E402
+from harness import pinocchio_peer as pp  # noqa: E402
+from harness.robot_bench import RobotBenchConfig, load_scene  # noqa: E402
+from harness.robot_poses import random_configurations  # noqa: E402
+
+pytestmark = pytest.mark.engines
+
+
+@pytest.fixture(scope="module")
+def kuka():
+    scene = load_scene(RobotBenchConfig(robot="kuka_iiwa"), "pch")
+    return scene, pp.build(scene, robot_files("kuka_iiwa").urdf)
+
+
+def test_pinocchio_places_every_body_where_spq_does(kuka):
+    import pinocchio as pin
+
+    scene, peer = kuka
+    for q in random_configurations(scene.model, 5, 1):
+        pin.computeDistances(peer.model, peer.data, peer.geometry, peer.geometry_data, peer.configuration(q))
+        for b, pose in enumerate(scene.body_poses(q)):
+            placed = peer.geometry_data.oMg[b].homogeneous
+            assert np.allclose(placed, pose, atol=1e-9), scene.bodies[b].name
+
+
+def test_pinocchio_distances_agree_with_spq(kuka):
+    scene, peer = kuka
+    qs = random_configurations(scene.model, 20, 2)
+    for q in qs:
+        mine = scene.distances(q, coherent=False)
+        theirs = peer.distances(peer.configuration(q))
+        separated = mine.status == "separated"
+        assert np.abs(theirs[separated] - mine.distance[separated]).max() < 1e-5
+        assert np.all(theirs[mine.status == "overlapping"] <= 1e-6)
+
+
+def test_unknown_variant_is_refused(kuka):
+    scene, _ = kuka
+    with pytest.raises(ValueError, match="variant"):
+        pp.build(scene, robot_files("kuka_iiwa").urdf, "fastest")
