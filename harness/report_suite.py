@@ -199,7 +199,7 @@ def continuity_section(out: Path) -> Section:
 def tradeoff_section(out: Path) -> Section:
     table = _read(out, "tradeoff.csv")
     caption = ("Queries per second (log scale) against the largest and the median absolute error (m, log scale; exact "
-               "zeros drawn at 1e-17) on one suite of separated poses with exact reference distances. spq and coal "
+               "zeros drawn at 1e-17) on one suite of separated poses with exact reference distances. spq, coal and MuJoCo "
                "are swept over their tolerance (one curve each); python-fcl and pybullet expose none and are single "
                "points. The Pareto front marks the settings no other setting beats in both speed and accuracy.")
     return Section("Speed against accuracy", [], [("Per engine and setting", table)],
@@ -410,7 +410,7 @@ def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = N
     meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick,
                         suite_seconds=timings, seconds=round(time.perf_counter() - start, 1))
     intro = ["spq measures distance queries between convex shapes: polyhedral hulls (PCH), sphere-torus-patch "
-             "bounding volumes (STP-BV) and superellipsoids (CSE), against python-fcl, coal, pybullet and an exact "
+             "bounding volumes (STP-BV) and superellipsoids (CSE), against python-fcl, coal, pybullet, MuJoCo (and pinocchio on whole robots) and an exact "
              "reference. Every figure below was measured in this run; each table's source CSV sits beside this page.",
              "Quick run: small settings, for checking that everything works; the figures are noisier." if quick else
              "Full run."]

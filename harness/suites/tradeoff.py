@@ -37,7 +37,7 @@ def run(config: Config) -> Output:
              f"{config.seed}; reference distances {suite.ref_distance.min():.3g} to {suite.ref_distance.max():.3g} m). "
              "All engines on the same poses in the same run, best of "
              f"{cfg.repeats} timed runs after a warm-up on 8 poses. spq: tol = rel_tol = tolerance (stops when "
-             "upper - lower bound <= tol + rel_tol * distance); coal: gjk_tolerance = tolerance; fcl, bullet "
+             "upper - lower bound <= tol + rel_tol * distance); coal: gjk_tolerance = tolerance; mujoco: ccd_tolerance = tolerance (native GJK/EPA); fcl, bullet "
              "(margin 0) and bullet-margin (pybullet's default margin) at their own settings. batched: one compiled "
              "call for all poses (cold starts); per-call: one Python call per query (spq.Pair keeps its warm start). "
              "Errors: |distance - exact reference| in m, from the distances of the timed run itself. failures: "
