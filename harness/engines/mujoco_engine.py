@@ -21,6 +21,9 @@ import numpy as np
 from harness.engines.base import Engine, EngineResult, PreparedPair, failed_result, mesh_arrays, result_from_raw
 
 DEFAULT_DISTMAX = 1e3  # m
+PIPELINE_NOTE = ("MuJoCo: mj_geomDistance between mesh geoms (the meshes' convex hulls), its native GJK/EPA "
+                 "(nativeccd on, MuJoCo's default; libccd with nativeccd off), ccd_tolerance 1e-6 and ccd_iterations "
+                 "as MuJoCo's defaults, distmax 1e3 m.")
 
 
 def _mjcf(meshes: list[tuple[np.ndarray, np.ndarray]], nativeccd: bool, inertia: str) -> str:

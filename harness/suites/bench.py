@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from harness.engines.mujoco_engine import PIPELINE_NOTE as MUJOCO_PIPELINE
 from harness.suites import Output, Table, frame_lines
 
 PAIRS = {"pch": ["PCH-PCH"], "stp": ["PCH-PCH", "STP-PCH", "STP-STP"]}
@@ -44,7 +45,8 @@ def run(config: Config) -> Output:
              f"translations uniform in ±{config.range} m, seed {config.seed}. Best of {config.repeats} repeats; every "
              "engine in the same run. per-call: one Python call per query; batched: one compiled call for all "
              "poses; signed: spq with signed=True (penetration depth on overlaps; coal always runs with signed "
-             "distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side.")
+             "distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side. "
+             + MUJOCO_PIPELINE)
     if config.kind == "stp":
         notes += f" STP-BV built from the link's hull vertices with r = {config.r} m, R = {config.R} m."
     out = Output(meta=meta, tables=[Table(f"bench_{config.kind}", f"Throughput ({config.kind})", table, notes)])

@@ -7,20 +7,22 @@ import time
 from dataclasses import dataclass
 
 from harness import crosscheck as cc
+from harness.engines.mujoco_engine import PIPELINE_NOTE as MUJOCO_PIPELINE
 from harness.suites import Output, Table, frame_lines
 
 NOTES = ("Errors are reported distance minus the exact reference distance (closest point of the "
          "Minkowski-difference hull; 0 when overlapping), in metres; relative errors and witness checks on "
          "separated poses only (reference distance > 1e-9 m). false_overlaps: separated by more than "
          "1e-9 m but reported overlapping; missed_overlaps: overlapping by more than 1e-9 m but reported "
-         "separated or touching. mean_signed_error shows a bias (pybullet's default margin: about -2 mm).")
+         "separated or touching. mean_signed_error shows a bias (pybullet's default margin: about -2 mm). "
+         + MUJOCO_PIPELINE)
 DEPTH_NOTES = ("Signed distance (minus the penetration depth when overlapping) against the exact reference's, on "
                "the touching and overlap buckets: depth error = the engine's raw signed distance - the "
                "reference's (m). sign_errors: on the wrong side of the +-1e-9 m band. Witness checks on the "
                "overlaps: | |p_B - p_A| - depth | and the points' distance from their hulls' surfaces. "
                "certificate_holds_pct: spq's [lower, upper] holds the reference. coal and python-fcl run with "
                "signed distance on, pybullet with margin 0 ('bullet') and its default 1 mm margin per shape "
-               "('bullet-margin', a 2 mm bias); spq with signed=True.")
+               "('bullet-margin', a 2 mm bias); MuJoCo's mj_geomDistance is signed; spq with signed=True.")
 
 
 @dataclass

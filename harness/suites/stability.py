@@ -8,6 +8,7 @@ import json
 import time
 from dataclasses import dataclass
 
+from harness.engines.mujoco_engine import PIPELINE_NOTE as MUJOCO_PIPELINE
 from harness.suites import Output, Table, frame_lines
 
 
@@ -47,7 +48,7 @@ def run(config: Config) -> Output:
              ", ".join(f"{k} {a:g}/{r:g}" for k, (a, r) in st.ENGINE_TOL.items()) + ". depth_verdict, where the "
              "reference overlaps or touches: the engine's raw signed distance against the reference's within its "
              "depth tolerance (" + ", ".join(f"{k} {a:g}/{r:g}" for k, (a, r) in st.ENGINE_DEPTH_TOL.items())
-             + ") and on the right side of the 1e-9 m band; 'no depth' for an engine that gives none.")
+             + ") and on the right side of the 1e-9 m band; 'no depth' for an engine that gives none. " + MUJOCO_PIPELINE)
     out = Output(meta=meta, tables=[Table("stability", "Stability cases (detail)", table, notes)])
     if not sweep.empty:
         out.raw["stability_coal_dualitygap_detail.csv"] = sweep
