@@ -371,3 +371,20 @@ def test_mujoco_reports_its_pipeline_and_a_distance_beyond_distmax_as_failed(box
     assert far.status == "failed" and "distmax" in far.message
     with pytest.raises(ValueError, match="distmax"):
         MujocoEngine(distmax=0.0)
+
+
+def test_a_missing_optional_engine_package_is_named_and_skipped(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # as if not installed: import raises ImportError
+    from harness.engines.mujoco_engine import MujocoEngine
+
+    with pytest.raises(ImportError, match="pip install mujoco"):
+        MujocoEngine()
+    with pytest.warns(RuntimeWarning, match="mujoco"):
+        engines = available_engines()
+    assert "mujoco" not in engines and "coal" in engines
+    for engine in engines.values():
+        engine.close()
+    with pytest.raises(ImportError, match="pip install mujoco"):
+        available_engines(["mujoco"])  # asked for by name: an error, not a skip

@@ -48,3 +48,14 @@ def test_unknown_variant_is_refused(kuka):
     scene, _ = kuka
     with pytest.raises(ValueError, match="variant"):
         pp.build(scene, robot_files("kuka_iiwa").urdf, "fastest")
+
+
+def test_without_pin_the_robot_bench_says_why_pinocchio_did_not_run(kuka, monkeypatch):
+    import sys
+
+    from harness.robot_bench import pinocchio_table
+
+    monkeypatch.setitem(sys.modules, "pinocchio", None)
+    scene, _ = kuka
+    table = pinocchio_table(RobotBenchConfig(robot="kuka_iiwa"), {"pch": scene}, None, None)
+    assert len(table) == 1 and table.status[0].startswith("not run:") and "pip install pin" in table.status[0]
