@@ -122,6 +122,16 @@ class Polyhedron(Shape):
     def bounding_radius(self) -> float:
         return float(np.sqrt((self.vertices**2).sum(axis=1).max()))
 
+    def to_mesh(self):
+        """This hull as a ``trimesh.Trimesh`` (local frame, metres): its vertices and outward
+        triangles as they are (watertight, exact: ``mesh.metadata['max_error']`` is 0). Export with
+        ``mesh.export("hull.glb")`` (or .obj, .stl)."""
+        import trimesh
+
+        mesh = trimesh.Trimesh(vertices=self.vertices.copy(), faces=self.faces.copy(), process=False, validate=False)
+        mesh.metadata.update(max_error=0.0, tolerance=0.0)
+        return mesh
+
     def signed_distance_to_surface(self, points) -> np.ndarray:
         """Signed distance (m) of local-frame points to the hull boundary: > 0 outside, < 0 inside.
 
