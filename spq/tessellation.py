@@ -39,6 +39,7 @@ MIN_REL_TOLERANCE = 1e-6  # tolerance / body radius below which a mesh would nee
 MAX_REL_TOLERANCE = 0.5  # tolerance / body radius above which the 'mesh' says nothing about the body
 DEFAULT_REL_TOLERANCE = 1e-3  # a mesh's default tolerance, times the body's bounding radius (0.1 mm at 0.1 m)
 LATTICE_COVER = 2.75  # covering angle of an n-point Fibonacci lattice, times sqrt(n) (rad; measured: 2.73)
+MERGE = 1e-9  # points closer than this (times the body's radius) are one: patch boundaries give twins
 ROUNDING = 1e-12  # relative slack on the certificate: points computed in floating point (m/m of the radius)
 
 Support = Callable[[np.ndarray], np.ndarray]  # (n, 3) unit directions -> (n, 3) support points, local frame
@@ -207,6 +208,20 @@ def hausdorff_bound(vertices: np.ndarray, faces: np.ndarray, planes: np.ndarray,
     return bound, directions
 
 
+def merge_close_points(points: np.ndarray, distance: float) -> np.ndarray:
+    """Indices of the points to keep so that no two kept points are within ``distance`` (m) (the
+    first of each close group stays). Twins from both sides of a patch boundary otherwise make
+    zero-area triangles, whose winding no cross product can tell."""
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(points).query_pairs(distance, output_type="ndarray")
+    drop = np.zeros(len(points), dtype=bool)
+    for i, j in pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]:
+        if not drop[i]:
+            drop[j] = True
+    return np.flatnonzero(~drop)
+
+
 def support_mesh(support: Support, points: np.ndarray, normals: np.ndarray, tolerance: float,
                  radius: float) -> SurfaceMesh:
     """Certified mesh of a convex body from its support map and initial surface points.
@@ -218,6 +233,8 @@ def support_mesh(support: Support, points: np.ndarray, normals: np.ndarray, tole
     rebuilds the hull until it holds; ValueError if that would take more than MAX_POINTS points."""
     slack = ROUNDING * radius
     points, normals = np.asarray(points, dtype=np.float64), unit(np.asarray(normals, dtype=np.float64))
+    keep = merge_close_points(points, MERGE * radius)
+    points, normals = points[keep], normals[keep]
     for rounds in range(1, MAX_ROUNDS + 1):
         if len(points) > MAX_POINTS:
             raise ValueError(f"a mesh within {tolerance:.3g} m would need more than {MAX_POINTS:,} surface points; "
@@ -230,6 +247,8 @@ def support_mesh(support: Support, points: np.ndarray, normals: np.ndarray, tole
         worst = np.unique(np.round(worst, 12), axis=0)
         points = np.concatenate([vertices, support(worst)])
         normals = np.concatenate([normals[used], worst])
+        keep = merge_close_points(points, MERGE * radius)
+        points, normals = points[keep], normals[keep]
     if bound > tolerance + slack:  # pragma: no cover - the refinement converges long before
         raise RuntimeError(f"mesh refinement stopped at a certified error of {bound:.3g} m > {tolerance:.3g} m")
     return SurfaceMesh(vertices, faces, normals[used], planes[:, :3].copy(), bound, rounds)

@@ -199,3 +199,29 @@ def test_a_tolerance_out_of_range_raises_value_error(tolerance, what, stp, cse):
     for shape in (stp, cse):
         with pytest.raises(ValueError, match=what):
             shape.to_mesh(tolerance)
+
+
+# --- patch colours and robot bodies -------------------------------------------------------------
+def test_a_triangle_within_one_patch_is_given_that_patch():
+    """Triangles whose three vertices' normals one patch owns lie on that patch (oracle: the support
+    search's owner of each vertex normal); the face colours of the pictures come from face_patch."""
+    stp = spq.STPBV.from_points(link().vertices, 0.02, 0.4)
+    mesh = stp.to_mesh(1e-4)
+    _, owner, _ = stp.support_patches(mesh.vertex_normals)
+    tri = owner[mesh.faces]
+    same = (tri[:, 0] == tri[:, 1]) & (tri[:, 1] == tri[:, 2])
+    assert same.sum() > 0.25 * len(tri)  # the rest straddle a boundary
+    assert (mesh.metadata["face_patch"][same] == tri[same, 0]).mean() > 0.99
+    assert set(mesh.metadata["face_kind"]) == {"small_sphere", "big_sphere", "torus"}
+
+
+@pytest.mark.parametrize("robot", ["kuka_iiwa", "panda"])
+def test_every_body_of_a_robot_meshes_watertight_within_its_tolerance(robot):
+    from harness.robot_bench import RobotBenchConfig, load_scene
+
+    scene = load_scene(RobotBenchConfig(robot=robot), "stp-both")
+    for body in scene.bodies:
+        for tol in (1e-3, 1e-4):
+            mesh = body.stp.to_mesh(tol)
+            assert mesh.is_watertight and mesh.is_winding_consistent, body.name
+            assert mesh.metadata["max_error"] <= tol * (1 + 1e-9)

@@ -16,6 +16,9 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
+SURFACE_PUSH = 1e-6  # how far past its support plane a point is pushed to find its patch (times the radius)
+
+
 class STPBV(Shape):
     """An STP-BV in its local frame (metres): small spheres of radius r on the vertices, big
     spheres of radius R on the faces, tori on the edges (paper section II, NOTES section 1).
@@ -258,8 +261,8 @@ class STPBV(Shape):
         bounding radius, or if the mesh would need over a million points.
         ``mesh.vertex_normals``: the exact outward normals of the surface at the vertices.
         ``mesh.metadata``: max_error (the certified bound, m), tolerance (m), face_patch (m,) the
-        patch owning each triangle's normal, face_kind (m,) its kind ('small_sphere', 'big_sphere',
-        'torus'). Export with trimesh: ``mesh.export("link.glb")`` (or .obj, .stl).
+        patch under each triangle's centre (:meth:`surface_patches`), face_kind (m,) its kind
+        ('small_sphere', 'big_sphere', 'torus'). Export with trimesh: ``mesh.export("link.glb")`` (or .obj, .stl).
         """
         from spq import tessellation as ts
         from spq.stp.tessellation import patch_samples
@@ -268,9 +271,27 @@ class STPBV(Shape):
         tol = ts.check_tolerance(tolerance, radius)
         points, normals, _ = patch_samples(self, tol)
         surface = ts.support_mesh(lambda d: self.support(d), points, normals, tol, radius)
-        _, patches, _ = self.support_patches(surface.face_normals)
+        patches = self.surface_patches(surface.vertices[surface.faces].mean(axis=1), surface.face_normals)
         return surface.to_trimesh(tolerance=tol, face_patch=patches,
                                   face_kind=np.array(self.PATCH_KINDS)[self.patch_kind(patches)])
+
+    def surface_patches(self, points, normals) -> np.ndarray:
+        """Patch (m,) of the surface point nearest to each of (m, 3) local points near the surface
+        (on a mesh's triangle, say), each first pushed just outside along its (m, 3) unit normal
+        (past the support plane): the patch that the point's piece of surface lies on. A triangle's
+        normal alone would not do: the tori are narrow bands (width about r times the angle between
+        the neighbouring faces) whose regions of directions are wide."""
+        from spq.query import distances
+        from spq.shapes.primitives import Sphere
+
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        gap = np.einsum("ij,ij->i", n, self.support(n) - p)
+        poses = np.tile(np.eye(4), (len(p), 1, 1))
+        poses[:, :3, 3] = p + (np.maximum(gap, 0.0) + SURFACE_PUSH * self.bounding_radius())[:, None] * n
+        res = distances(self, Sphere(SURFACE_PUSH * self.bounding_radius() / 2), np.eye(4), poses)
+        _, patches, _ = self.support_patches(res.normal)
+        return patches
 
     def __repr__(self) -> str:
         return (f"STPBV(r={self.r}, R={self.R}: {self.n_small} small spheres, {self.n_big} big spheres, "
