@@ -253,6 +253,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_suite("rtradeoff"))
 
+    p = sub.add_parser("pictures", help="3-D pictures (PNG): a link's PCH/STP/CSE covers, the R trade-off as shapes, a "
+                                        "robot at its closest posture, an overlapping pair's penetration vector")
+    p.add_argument("--object", default="kuka_link_4", help="link of the covers and the R pictures, side A of the overlap")
+    p.add_argument("--other", default="kuka_link_2", help="side B of the overlapping pair (its superellipsoid cover)")
+    p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m)")
+    p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m) of the covers and the overlap")
+    p.add_argument("--R-values", type=float, nargs="+", dest="R_values", help="R values of the R picture (m)")
+    p.add_argument("--robot", help="jvrc1 | kuka_iiwa | panda (default: jvrc1 with the shared data, else kuka_iiwa)")
+    p.add_argument("--steps", type=int, default=1000, help="trajectory steps searched for the closest posture")
+    p.add_argument("--depth", type=float, default=0.02, help="penetration depth of the overlapping pair (m)")
+    p.add_argument("--tolerance", type=float, default=1e-3, help="largest mesh-to-surface distance drawn (m)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.add_argument("--quick", action="store_true", help="shorter trajectory, coarser meshes")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_suite("pictures"))
+
     p = sub.add_parser("scene", help="a robot scene from a TOML file (scenes/*.toml): every pair over its configurations")
     p.add_argument("scene", help="scene file (TOML; see scenes/ and harness/scene_file.py)")
     p.add_argument("--out", help="folder for the per-configuration and closest-posture CSVs (default: none written)")

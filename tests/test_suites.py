@@ -26,7 +26,7 @@ def test_every_suite_has_one_entry_signature():
     modules = suite_modules()
     assert {m.__name__.rsplit(".", 1)[1] for m in modules} >= {
         "crosscheck", "bench", "table1", "robot", "support", "continuity", "stability", "depth", "tradeoff",
-        "rtradeoff", "check"}
+        "rtradeoff", "check", "pictures"}
     for module in modules:
         assert dataclasses.is_dataclass(module.Config), module.__name__
         config = module.Config()  # every field has a default
