@@ -254,6 +254,50 @@ def depth_section(out: Path) -> Section:
     return Section("Penetration depth against an independent oracle", paragraphs, [("Per pair and bucket", summary)])
 
 
+def pictures_section(out: Path) -> Section:
+    table = _read(out, "pictures.csv")
+    facts = dict(zip(table.picture, table.facts))
+    subject = dict(zip(table.picture, table.subject))
+    captions = {
+        "pictures_link_covers.png": "One link's three covers, the same view: " + facts.get("pictures_link_covers.png", ""),
+        "pictures_r_tradeoff.png": (f"STP-BVs of {subject.get('pictures_r_tradeoff.png', 'the link')} at growing R (r fixed): "
+                                    + facts.get("pictures_r_tradeoff.png", "")),
+        "pictures_robot.png": (f"{subject.get('pictures_robot.png', 'The robot')}: " + facts.get("pictures_robot.png", "")
+                               + ". Left: every body's bounding volume, the closest pairs' witness segments numbered "
+                                 "from the closest; right: the closest pair, each side with the volume its query used."),
+        "pictures_penetration.png": (f"{subject.get('pictures_penetration.png', '')}: "
+                                     + facts.get("pictures_penetration.png", "")
+                                     + ". Left: overlapping, see-through; right: B moved by the vector."),
+    }
+    charts = [Chart(out / name, text, LOOK.get(name, "")) for name, text in captions.items()]
+    notes = ["Meshes from spq's to_mesh: every vertex on the true surface, each mesh within the stated tolerance of "
+             "it (certified). STP-BV patches: orange small spheres (radius r, at the hull's vertices), gold big spheres "
+             "(radius R, on its faces), purple tori (along its edges)."]
+    return Section("Pictures: bounding volumes, a robot, a penetration", notes,
+                   [("The closest pairs at the pictured posture", _read(out, "pictures_closest_pairs.csv"))], charts,
+                   gallery=True)
+
+
+# the one line above each chart's caption: what to look at (by file name)
+LOOK = {
+    "pictures_link_covers.png": "Look at how tightly each cover hugs the link: the STP-BV is the hull rounded, the CSE "
+                                "one smooth shape around it.",
+    "pictures_r_tradeoff.png": "Look at the shape as R grows: from a ball-like hull to the link's own hull rounded by r.",
+    "pictures_robot.png": "Look at the red witness segments: where the robot comes closest to itself.",
+    "pictures_penetration.png": "Look at the red arrow: the shortest translation of B that separates the two bodies.",
+    "check_history.png": "Look for a step up (left, middle) or down (right) at a commit.",
+    "support_scaling.png": "Look at the slopes: the hull-accelerated search grows slowest with the feature count.",
+    "continuity_lipschitz.png": "Look at which lines rise as the step shrinks: only polyhedral pairs' witness points jump.",
+    "continuity_witness_paths.png": "Look at the PCH-PCH path: it jumps across the face where the covers' paths glide.",
+    "contact_continuity.png": "Look for steps at zero: none in the signed distance; gradient jumps only for PCH-PCH.",
+    "tradeoff.png": "Look at the upper left: faster and more accurate at once.",
+    "rtradeoff.png": "Look at the recommended R: little volume excess left, witness speed still low.",
+    "robot_engines.png": "Look at the bar lengths: time per configuration, shorter is faster.",
+    "robot_trajectory.png": "Look at the x marks: gradient jumps of PCH-PCH that auto does not have.",
+    "robot_distance_matrix.png": "Look for the darkest cells: the pairs that come closest at this posture.",
+}
+
+
 def report_robot() -> str:
     """JVRC-1 (the issue's robot, from the shared datasets) if present, else the KUKA iiwa of pybullet_data."""
     from datasets.robots import robot_files
@@ -364,6 +408,8 @@ def _config(module: str, **fixed) -> Callable[[bool, int, Path], object]:
 
 
 SUITES = [
+    Suite("pictures", "pictures", _config("pictures", quick={True: True, False: False}, robot=report_robot),
+          pictures_section),
     Suite("crosscheck", "crosscheck", _config("crosscheck", per_bucket={True: 26, False: None},
                                               agreement_poses={True: 20000, False: None}), crosscheck_section),
     Suite("bench pch", "bench", _config("bench", kind="pch", poses={True: 2000, False: None},
@@ -394,6 +440,7 @@ def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = N
     lines are printed as it finishes (a regression found by the check is shown in its section)."""
     import importlib
 
+    from harness.report.verdict import verdict
     from harness.suites import write_output
 
     start = time.perf_counter()
@@ -407,11 +454,13 @@ def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = N
         print(f"\n== {suite.name} ==", *output.lines, sep="\n")
         timings[suite.name] = round(time.perf_counter() - t0, 1)
         sections.append(suite.section(out))
+        for chart in sections[-1].charts:
+            chart.look = chart.look or LOOK.get(chart.path.name, "")
     meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick,
                         suite_seconds=timings, seconds=round(time.perf_counter() - start, 1))
     intro = ["spq measures distance queries between convex shapes: polyhedral hulls (PCH), sphere-torus-patch "
              "bounding volumes (STP-BV) and superellipsoids (CSE), against python-fcl, coal, pybullet, MuJoCo (and pinocchio on whole robots) and an exact "
-             "reference. Every figure below was measured in this run; each table's source CSV sits beside this page.",
-             "Quick run: small settings, for checking that everything works; the figures are noisier." if quick else
-             "Full run."]
-    return render(out, "spq report", intro, sections, meta)
+             "reference. Every figure below was measured in this run; each table's source CSV sits beside this page. "
+             + ("Quick run: small settings, for checking that everything works; the figures are noisier." if quick
+                else "Full run.")]
+    return render(out, "spq report", intro, sections, meta, lead=verdict(out))

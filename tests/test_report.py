@@ -29,6 +29,24 @@ def test_the_report_has_every_section_and_embeds_every_chart(report_dir):
     assert (report_dir / "REPORT.md").read_text().startswith("# spq report")
 
 
+def test_the_page_leads_with_the_verdict_and_the_four_pictures(report_dir):
+    page = (report_dir / "index.html").read_text()
+    verdict, first_section = page.index("id='verdict'"), page.index("<h2 id='s0'>")
+    assert verdict < first_section
+    assert "Pictures" in page[first_section:first_section + 200]
+    for name in ("pictures_link_covers", "pictures_r_tradeoff", "pictures_robot", "pictures_penetration"):
+        assert f'alt="{name}"' in page, name
+    lead = page[verdict:first_section]
+    for engine in ("spq", "coal"):
+        assert f"<td>{engine}</td>" in lead
+    assert "PCH–PCH" in lead  # Table I
+    links = set(re.findall(r"href='#(s\d+)'", lead))
+    assert links and all(f"<h2 id='{a}'>" in page for a in links)
+    # every chart has its one-line 'look at' caption; every table sits in a box that scrolls sideways
+    assert page.count("<figure>") == page.count("<b class='look'>Look ")
+    assert page.count("<table") == page.count("<div class='scroll'><table")
+
+
 def test_the_reported_figures_are_sane(report_dir):
     engines = pd.read_csv(report_dir / "crosscheck_engines.csv")
     spq_row = engines[engines.engine == "spq"].iloc[0]
@@ -61,6 +79,12 @@ def test_the_page_renders_in_headless_chromium_with_every_image(report_dir, tmp_
     shot = tmp_path / "report.png"
     subprocess.run([*base, "--window-size=1200,2400", f"--screenshot={shot}", url], capture_output=True, timeout=120)
     assert shot.stat().st_size > 50_000
+    # the first screen (1280 x 900 window) holds the whole verdict and the top of the first picture
+    dom = subprocess.run([*base, "--window-size=1280,900", "--dump-dom", url], capture_output=True, text=True,
+                         timeout=120).stdout
+    screen = int(re.search(r'data-screen-height="(\d+)"', dom).group(1))
+    assert int(re.search(r'data-verdict-bottom="(\d+)"', dom).group(1)) <= screen
+    assert int(re.search(r'data-first-figure-top="(\d+)"', dom).group(1)) < screen - 100
 
 
 def test_the_robot_section_agrees_with_coal_and_shows_no_auto_gradient_jump(report_dir):
