@@ -136,6 +136,26 @@ def cmd_scene(args) -> int:
     return 0
 
 
+def cmd_view(args) -> int:
+    from harness.viewer import MissingViewer, serve
+
+    try:
+        viewer = serve(args.targets, host=args.host, port=args.port, tolerance=args.tolerance, r=args.r, R=args.R)
+    except MissingViewer as exc:
+        print(f"spq view: {exc}", file=sys.stderr)
+        return 2
+    print(f"spq view: serving {' and '.join(args.targets)} at {viewer.url} (open it in a browser; Ctrl-C stops)",
+          flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        viewer.close()
+    return 0
+
+
 def cmd_history(args) -> int:
     from harness import check as ck
 
@@ -275,6 +295,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder for the per-configuration and closest-posture CSVs (default: none written)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_scene)
+
+    p = sub.add_parser("view", help="interactive viewer in the browser (viser): a scene file's robot with joint sliders, "
+                                    "live distances and witness segments, or two shapes with a gizmo")
+    p.add_argument("targets", nargs="+", metavar="TARGET",
+                   help="a scene file (scenes/*.toml), or two shapes NAME[:pch|stp|cse] (dataset names or mesh paths)")
+    p.add_argument("--host", default="127.0.0.1", help="address to serve on (default: this machine only)")
+    p.add_argument("--port", type=int, default=8080, help="port (0: any free port)")
+    p.add_argument("--tolerance", type=float, default=1e-3, help="largest mesh-to-surface distance drawn (m)")
+    p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius of a shape pair (m)")
+    p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius of a shape pair (m)")
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("check", help="the gate: a fixed-seed run of every engine judged against a baseline (exit 0/1/2)")
     p.add_argument("--baseline", help="results file of an earlier run to compare with (regressions: exit 1)")
