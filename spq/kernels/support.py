@@ -107,20 +107,57 @@ def cell_candidates(vertices: np.ndarray, G: int, chunk: int = 64) -> tuple[np.n
     eps = CANDIDATE_MARGIN * max(float(np.linalg.norm(V, axis=1).max()), np.finfo(float).tiny)
     centre_support = (cube_cell_centres(G) @ V.T).argmax(axis=1)
     kept = []
+    survivors = np.empty(len(V), dtype=np.int64)
+    ids = np.empty((chunk, len(V)), dtype=np.int64)
+    counts = np.empty(chunk, dtype=np.int64)
     for c0 in range(0, len(corners), chunk):
-        M = corners[c0:c0 + chunk] @ V.T  # (cells, 4, n): each vertex's value at each corner
-        cells = np.arange(len(M))
+        M = np.ascontiguousarray(corners[c0:c0 + chunk] @ V.T)  # (cells, 4, n): each vertex's value at each corner
         # first against the supports of the corners and the centre, which beat most vertices
         probes = np.concatenate([M.argmax(axis=2), centre_support[c0:c0 + chunk, None]], axis=1)  # (cells, 5)
-        P = M[cells[:, None, None], np.arange(4)[None, :, None], probes[:, None, :]]  # (cells, 4, 5)
-        beaten = (P[:, :, :, None] > M[:, :, None, :] + eps).all(axis=1).any(axis=1)  # (cells, n)
-        for c in cells:
-            ids = np.flatnonzero(~beaten[c])
-            m = M[c][:, ids]  # then among the survivors
-            lost = (m[:, :, None] > m[:, None, :] + eps).all(axis=0).any(axis=0)
-            kept.append(ids[~lost])
+        probes = np.ascontiguousarray(probes, dtype=np.int64)
+        _cell_survivors(M, probes, eps, survivors, ids, counts)
+        kept += [ids[c, :counts[c]].copy() for c in range(len(M))]
     offsets = np.concatenate([[0], np.cumsum([len(k) for k in kept])]).astype(np.int64)
     return offsets, np.concatenate(kept).astype(np.int64)
+
+
+@kernel(inline="always")
+def _beats(M, c, w, v, eps):
+    """Whether vertex w beats vertex v by more than eps at all four corners of cell c."""
+    return (M[c, 0, w] > M[c, 0, v] + eps and M[c, 1, w] > M[c, 1, v] + eps
+            and M[c, 2, w] > M[c, 2, v] + eps and M[c, 3, w] > M[c, 3, v] + eps)
+
+
+@kernel
+def _cell_survivors(M, probes, eps, survivors, ids, counts):
+    """Per cell c of M (cells, 4, n), its candidates in ids[c, :counts[c]], ascending: the vertices
+    that no probe (probes[c], 5 vertices) beats at all four corners, then those of them that no other
+    survivor beats (cell_candidates); survivors (n,) is scratch. A loop here: the numpy form took
+    seconds on hulls of thousands of vertices, in Python's per-cell overhead and in its (survivors x
+    survivors) temporaries."""
+    n = M.shape[2]
+    for c in range(M.shape[0]):
+        k = 0
+        for v in range(n):
+            beaten = False
+            for p in range(probes.shape[1]):
+                if _beats(M, c, probes[c, p], v, eps):
+                    beaten = True
+                    break
+            if not beaten:
+                survivors[k] = v
+                k += 1
+        kept = 0
+        for j in range(k):
+            lost = False
+            for i in range(k):
+                if _beats(M, c, survivors[i], survivors[j], eps):
+                    lost = True
+                    break
+            if not lost:
+                ids[c, kept] = survivors[j]
+                kept += 1
+        counts[c] = kept
 
 
 def cube_map_idata(n_vertices: int, G: int, offsets: np.ndarray, candidates: np.ndarray) -> np.ndarray:

@@ -91,34 +91,39 @@ class STPBV(Shape):
         self.torus_centres = 0.5 * (x[a] + x[b])
         self.torus_axes = (x[a] - x[b]) / length[:, None]
         self.torus_radii = np.sqrt(np.maximum(rho * rho - 0.25 * length * length, 0.0))
-        axes, coss, recs = [], [], []  # recs: (patch, boundary, side, neighbour)
-
-        def boundary(axis, cos, inside_patch, outside_patch):
-            k = len(coss)
-            axes.append(axis)
-            coss.append(cos)
-            recs.append((inside_patch, k, 1, outside_patch))
-            recs.append((outside_patch, k, -1, inside_patch))
-
-        for t, e in enumerate(real):
-            torus = V + F + t
-            va, vb = topo.edges[e]
-            f1, f2 = topo.edge_faces[e]
-            for f, (u, w) in ((f1, (va, vb)), (f2, (vb, va))):
-                if f != NO_FACE:
-                    c = topo.face_centres[f]
-                    boundary(_unit(np.cross(x[u] - c, x[w] - c)), 0.0, V + f, torus)
-            cos = length[t] / (2.0 * rho)
-            boundary(self.torus_axes[t], cos, va, torus)
-            boundary(-self.torus_axes[t], cos, vb, torus)
-        for e in np.flatnonzero(~topo.edge_real):
-            va, vb = topo.edges[e]
-            f1, f2 = topo.edge_faces[e]
-            c = topo.face_centres[f1]
-            boundary(_unit(np.cross(x[va] - c, x[vb] - c)), 0.0, V + f1, V + f2)
-        self.boundary_axes = np.array(axes, dtype=np.float64).reshape(-1, 3)
-        self.boundary_cos = np.array(coss, dtype=np.float64)
-        recs = np.array(recs, dtype=np.int64).reshape(-1, 4)
+        # Every region boundary, built in bulk (a Python loop over edges took seconds on hulls of a
+        # few thousand vertices). Order, as the records and the feature searches expect: per real
+        # torus its face boundaries (f1, then f2, where present), then its va and vb boundaries;
+        # then one boundary per zero-width torus.
+        f1, f2 = topo.edge_faces[real, 0], topo.edge_faces[real, 1]
+        torus = V + F + np.arange(len(real))
+        face_axes = np.zeros((len(real), 2, 3))
+        for side, (f, u, w) in enumerate(((f1, a, b), (f2, b, a))):
+            m = f != NO_FACE
+            c = topo.face_centres[f[m]]
+            face_axes[m, side] = _unit(np.cross(x[u[m]] - c, x[w[m]] - c))
+        cos_t = length / (2.0 * rho)
+        block_axes = np.concatenate([face_axes, self.torus_axes[:, None], -self.torus_axes[:, None]], axis=1)
+        block_cos = np.stack([np.zeros(len(real)), np.zeros(len(real)), cos_t, cos_t], axis=1)
+        block_inside = np.stack([V + f1, V + f2, a, b], axis=1)
+        present = np.stack([f1 != NO_FACE, f2 != NO_FACE, np.ones(len(real), bool), np.ones(len(real), bool)],
+                           axis=1)
+        flat = np.flatnonzero(~topo.edge_real)
+        g1 = topo.edge_faces[flat, 0]
+        ga, gb = topo.edges[flat, 0], topo.edges[flat, 1]
+        axes = np.concatenate([block_axes[present].reshape(-1, 3),
+                               _unit(np.cross(x[ga] - topo.face_centres[g1], x[gb] - topo.face_centres[g1]))])
+        coss = np.concatenate([block_cos[present], np.zeros(len(flat))])
+        inside = np.concatenate([block_inside[present], V + g1])
+        outside = np.concatenate([np.broadcast_to(torus[:, None], present.shape)[present],
+                                  V + topo.edge_faces[flat, 1]])
+        k = np.arange(len(coss))
+        # two records per boundary, (patch, boundary, side, neighbour), one from each side
+        recs = np.stack([np.stack([inside, k, np.ones_like(k), outside], axis=1),
+                         np.stack([outside, k, -np.ones_like(k), inside], axis=1)], axis=1)
+        self.boundary_axes = np.ascontiguousarray(axes, dtype=np.float64).reshape(-1, 3)
+        self.boundary_cos = np.ascontiguousarray(coss, dtype=np.float64)
+        recs = recs.astype(np.int64).reshape(-1, 4)
         order = np.argsort(recs[:, 0], kind="stable")
         recs = recs[order]
         P = V + F + len(real)
@@ -138,6 +143,21 @@ class STPBV(Shape):
             return
         index = {tuple(p): i for i, p in enumerate(x)}
         self.hull_to_small = np.array([index[tuple(p)] for p in self.hull.vertices], dtype=np.int64)
+
+    def use_hull(self, hull) -> bool:
+        """Take the Polyhedron ``hull`` as the underlying hull if it has exactly the vertices of this
+        one (in any order): the same polytope, whose cube map (seconds to build for a few thousand
+        vertices) a caller may already hold. Returns whether it did; only before kernel_data()."""
+        own = self.hull
+        if own is None or own is hull or self._kernel is not None or own.vertices.shape != hull.vertices.shape:
+            return own is hull
+        order_own, order_new = np.lexsort(own.vertices.T), np.lexsort(hull.vertices.T)
+        if not np.array_equal(own.vertices[order_own], hull.vertices[order_new]):
+            return False
+        small = np.empty_like(self.hull_to_small)
+        small[order_new] = self.hull_to_small[order_own]
+        self.hull, self.hull_to_small = hull, small
+        return True
 
     # --- counts -------------------------------------------------------------------------------
     @property
