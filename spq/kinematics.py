@@ -37,7 +37,9 @@ class PrimitiveGeometry(NamedTuple):
     """A URDF primitive attached to a link, centred at ``origin`` (4, 4, in the link frame).
 
     ``kind`` and ``size`` (metres): 'box' (3,) full edge lengths; 'sphere' (1,) radius; 'cylinder'
-    (2,) radius and length, axis along z of ``origin``."""
+    (2,) radius and length, axis along z of ``origin``; 'capsule' (2,) radius and the length of its
+    segment (the cylinder between the two half balls, as in coal and pinocchio), axis along z. URDF
+    has no capsule: read_urdf never makes one, a caller may (pinocchio's ``<collision_checking>``)."""
 
     kind: str
     size: np.ndarray

@@ -14,6 +14,10 @@ Bounding-volume policies, per body:
   distance gradient continuous, and the PCH side is cheaper). Against a ``pch`` body an ``auto`` body
   uses its STP-BV; against an ``stp`` or ``cse`` body, its PCH.
 - ``stp-both`` (scene-wide only): every body uses its STP-BV, for comparison.
+
+A body may carry an exact primitive (``Body.shape``: a Sphere, Box or Capsule, from a URDF read with
+``primitives="exact"``): it is queried in place of the hull wherever the policy picks the PCH, and a
+sphere also where it picks the STP-BV (a sphere is strictly convex already, so it needs none).
 """
 
 from __future__ import annotations
@@ -44,6 +48,7 @@ from spq.kernels.batch import I_SIGNED
 from spq.kinematics import PRISMATIC, MeshGeometry, PrimitiveGeometry, RobotModel
 from spq.query import DEFAULT_MAX_ITER, DEFAULT_TOL_ABS, DEFAULT_TOL_REL, _check_tolerances, check_signed
 from spq.shapes.polyhedron import Polyhedron
+from spq.shapes.primitives import Box, Capsule, Sphere
 from spq.shapes.stpbv import STPBV
 from spq.shapes.superellipsoid import Superellipsoid
 from spq.validation import as_pose, as_positive
@@ -54,6 +59,7 @@ BV_KINDS = ("pch", "stp", "cse")
 DEFAULT_R_SMALL = 0.005  # m: r of the STP-BVs (Table I's value)
 DEFAULT_R_BIG = 2.0  # m: R of the STP-BVs
 PRUNED_STATUS = "pruned"
+PRIMITIVE_MODES = ("hull", "exact")  # how Scene.from_urdf / from_model turn URDF boxes, spheres and capsules into bodies
 
 
 def check_policy(policy: str, allowed=BODY_POLICIES, what: str = "policy") -> str:
@@ -87,7 +93,8 @@ class Body:
     index into ``model.link_names``; offset: 4x4 pose of the hull's frame in the link frame (m);
     hull: the PCH; policy: one of BODY_POLICIES; stp / cse: the STP-BV and the covering
     superellipsoid fit (FitResult: shape and its pose in the hull frame), built when the policy needs
-    them."""
+    them; shape: an exact primitive (Sphere, Box or Capsule, in the hull frame) queried in place of
+    the hull, whose hull then circumscribes it (for the STP-BV, the fit and other engines), or None."""
 
     name: str
     link: int
@@ -97,6 +104,7 @@ class Body:
     stp: STPBV | None = None
     cse: object | None = None
     source: str = ""
+    shape: Sphere | Box | Capsule | None = None
 
     @property
     def stp_features(self) -> int:
@@ -195,42 +203,69 @@ class Scene:
             if policy == "stp-both":
                 b.policy = "stp"
         self._build_volumes()
-        self.pairs, self.pair_kinds = self._choose_pairs(skip_adjacent, skip)
+        self._skip_adjacent, self._skip = bool(skip_adjacent), list(skip)
+        self.pairs, self.pair_kinds = self._choose_pairs(skip_adjacent, self._skip)
         self._pack()
 
     # --- construction ---------------------------------------------------------------------------
     @classmethod
     def from_urdf(cls, urdf_path, convex_dir=None, mesh_root=None, policy: str = "auto", policies=None,
-                  **options) -> "Scene":
+                  primitives: str = "hull", **options) -> "Scene":
         """A scene from a URDF: one body per geometry of each link (collision, else visual).
 
         convex_dir: a directory of qhull ``o f`` hulls named ``NAME-ch.txt`` after each mesh file
         ``NAME.ext`` (as in the JVRC-1 data); a mesh with no such file raises ValueError. Without
         it the hull of the mesh's vertices is used: ``package://PKG/REST`` resolves to
         ``mesh_root/REST``, else ``mesh_root/PKG/REST`` (mesh_root defaults to the URDF's directory),
-        a relative path to the URDF's directory. Primitives become hulls too: a box its 8 corners, a cylinder a
-        PRIMITIVE_SEGMENTS-gon prism and a sphere an icosphere, both circumscribing the true shape
-        (so the distance is never larger than the primitive's). policy: scene policy (see SCENE_POLICIES) and every body's default;
-        policies: {body name: policy} overrides. options: as for :class:`Scene`.
+        a relative path to the URDF's directory. Primitives: with ``primitives="hull"`` (the default)
+        they become hulls: a box its 8 corners, a cylinder a PRIMITIVE_SEGMENTS-gon prism and a sphere
+        an icosphere, both circumscribing the true shape (so the distance is never larger than the
+        primitive's); with ``"exact"`` a box, a sphere and a capsule (a PrimitiveGeometry of kind
+        'capsule') are queried as spq's Box, Sphere and Capsule (Body.shape), and a cylinder stays
+        the circumscribing prism (spq has no cylinder). policy: scene policy (see SCENE_POLICIES) and
+        every body's default; policies: {body name: policy} overrides. options: as for :class:`Scene`.
         """
         from spq.io.urdf import read_urdf
 
         check_policy(policy, SCENE_POLICIES, "scene policy")
         model = read_urdf(urdf_path)
-        urdf_dir = Path(urdf_path).resolve().parent
+        return cls.from_model(model, Path(urdf_path).resolve().parent, convex_dir, mesh_root, policy, policies,
+                              primitives, **options)
+
+    @classmethod
+    def from_model(cls, model: RobotModel, urdf_dir=None, convex_dir=None, mesh_root=None, policy: str = "auto",
+                   policies=None, primitives: str = "hull", hull_cache: dict | None = None, **options) -> "Scene":
+        """:meth:`from_urdf` for a RobotModel already read (or edited: mesh filenames made absolute,
+        geometry replaced). urdf_dir: the folder relative mesh filenames resolve against (default:
+        the folder of ``model.source``, else the working directory). hull_cache: a dict kept between
+        calls, in which each mesh (file, scale, folders) and primitive (kind, size) gets its hull once:
+        robots that share meshes then share hull objects, and their cube maps. The rest as in from_urdf."""
+        check_policy(policy, SCENE_POLICIES, "scene policy")
+        if primitives not in PRIMITIVE_MODES:
+            raise ValueError(f"unknown primitives mode {primitives!r}; choose one of {list(PRIMITIVE_MODES)}")
+        if urdf_dir is None:
+            urdf_dir = Path(model.source).resolve().parent if model.source else Path.cwd()
+        urdf_dir = Path(urdf_dir)
         default = "stp" if policy == "stp-both" else policy
         policies = dict(policies or {})
         bodies = []
         for link, geoms in enumerate(model.link_geometry):
             for k, geom in enumerate(geoms):
                 name = model.link_names[link] + (f"#{k}" if len(geoms) > 1 else "")
+                shape = None
                 if isinstance(geom, MeshGeometry):
-                    hull, source = _load_hull(geom.filename, geom.scale, convex_dir, mesh_root, urdf_dir,
-                                              model.link_names[link])
+                    key = (geom.filename, tuple(np.asarray(geom.scale, dtype=float).ravel()), convex_dir, mesh_root,
+                           urdf_dir)
+                    hull, source = _cached(hull_cache, key, lambda: _load_hull(
+                        geom.filename, geom.scale, convex_dir, mesh_root, urdf_dir, model.link_names[link]))
                 else:
-                    hull, source = _primitive_hull(geom), f"{geom.kind} {list(np.round(geom.size, 6))}"
+                    key = (geom.kind, tuple(np.asarray(geom.size, dtype=float)))
+                    hull, source = _cached(hull_cache, key, lambda: (
+                        _primitive_hull(geom), f"{geom.kind} {list(np.round(geom.size, 6))}"))
+                    if primitives == "exact":
+                        shape = _primitive_shape(geom)
                 bodies.append(Body(name, link, np.asarray(geom.origin, dtype=np.float64), hull, default,
-                                   source=source))
+                                   source=source, shape=shape))
         unknown = set(policies) - {b.name for b in bodies}
         if unknown:
             raise ValueError(f"policies name unknown bodies {sorted(unknown)}; bodies: {[b.name for b in bodies]}")
@@ -238,13 +273,34 @@ class Scene:
             b.policy = check_policy(policies.get(b.name, b.policy))
         return cls(model, bodies, policy=policy, **options)
 
+    def with_policy(self, policy: str) -> "Scene":
+        """This scene with every body under the scene policy ``policy``: the same bodies (hulls,
+        primitives, and the STP-BVs and fits already built are shared, not rebuilt), the same pairs,
+        radii, base and stopping rule. Building a robot's scene once and deriving the others saves
+        reading and hulling its meshes again."""
+        check_policy(policy, SCENE_POLICIES, "scene policy")
+        body_policy = "stp" if policy == "stp-both" else policy
+        bodies = [Body(b.name, b.link, b.offset, b.hull, body_policy, stp=b.stp, cse=b.cse, source=b.source,
+                       shape=b.shape) for b in self.bodies]
+        tol, rel_tol, max_iter = self._tol
+        return type(self)(self.model, bodies, policy=policy, r=self.r, R=self.R, skip_adjacent=self._skip_adjacent,
+                          skip=self._skip, base=self.base, tol=tol, rel_tol=rel_tol, max_iter=max_iter)
+
     def _build_volumes(self) -> None:
+        built = {}  # id(hull) -> STP-BV: bodies that share a hull object (repeated meshes) share its STP-BV
         for b in self.bodies:
-            if b.policy in ("stp", "auto") and b.stp is None:
+            if b.policy in ("stp", "auto") and b.stp is None and not isinstance(b.shape, Sphere):
+                if id(b.hull) in built:
+                    b.stp = built[id(b.hull)]
+                    continue
                 try:
                     b.stp = STPBV.from_points(b.hull.vertices, self.r, self.R)
                 except ValueError as exc:
                     raise ValueError(f"body {b.name!r}: {exc}") from None
+                except RuntimeError as exc:  # the construction's own consistency checks: name the body
+                    raise RuntimeError(f"body {b.name!r} ({b.source}): STP-BV construction failed: {exc}") from exc
+                b.stp.use_hull(b.hull)  # the hull's cube map is then built once for the PCH and the STP-BV
+                built[id(b.hull)] = b.stp
             if b.policy == "cse" and b.cse is None:
                 b.cse = Superellipsoid.fit(b.hull.vertices)
 
@@ -328,7 +384,7 @@ class Scene:
                 frange[s], irange[s] = (f0, f0 + len(data[s].fdata)), (i0, i0 + len(data[s].idata))
         centre, radius = [], []
         for (bi, bv), (shape, _), kd in zip(keys, shapes, data):
-            if bv == "cse":
+            if bv == "cse" or isinstance(shape, (Sphere, Box, Capsule)):
                 c, rad = np.zeros(3), shape.bounding_radius()
             elif bv == "stp":
                 c, rad = _bounding_sphere(shape.topology.vertices, shape.r)
@@ -362,9 +418,9 @@ class Scene:
     def _volume(body: Body, bv: str):
         """(shape, pose of the shape's frame in the hull frame) of a body's bounding volume."""
         if bv == "pch":
-            return body.hull, np.eye(4)
+            return (body.hull if body.shape is None else body.shape), np.eye(4)
         if bv == "stp":
-            return body.stp, np.eye(4)
+            return (body.shape if isinstance(body.shape, Sphere) else body.stp), np.eye(4)
         return body.cse.shape, np.asarray(body.cse.pose, dtype=np.float64)
 
     # --- queries --------------------------------------------------------------------------------
@@ -493,6 +549,15 @@ def _hull_is_tail(stp, pch) -> bool:
             and np.array_equal(stp.fdata[-nf:], pch.fdata) and np.array_equal(stp.idata[-ni:], pch.idata))
 
 
+def _cached(cache: dict | None, key, make):
+    """make() once per key of cache (a dict), or every time without one."""
+    if cache is None:
+        return make()
+    if key not in cache:
+        cache[key] = make()
+    return cache[key]
+
+
 def _load_hull(filename: str, scale, convex_dir, mesh_root, urdf_dir: Path, link: str) -> tuple[Polyhedron, str]:
     """The convex hull of one URDF mesh geometry (scaled), from convex_dir or from the mesh."""
     stem = Path(filename.split("://", 1)[-1]).stem
@@ -529,18 +594,36 @@ PRIMITIVE_SEGMENTS = 64  # sides of a cylinder's polygon; a circumscribed polygo
 
 
 def _primitive_hull(geom: PrimitiveGeometry) -> Polyhedron:
-    """Hull of a URDF box, sphere or cylinder, circumscribing the true shape (see Scene.from_urdf)."""
+    """Hull of a URDF box, sphere, cylinder or capsule, circumscribing the true shape (see Scene.from_urdf)."""
     import trimesh
 
     size = np.asarray(geom.size, dtype=np.float64)
     if geom.kind == "box":
         return Polyhedron.from_points(trimesh.creation.box(extents=size).vertices)
-    if geom.kind == "sphere":
+    if geom.kind in ("sphere", "capsule"):
         ico = trimesh.creation.icosphere(subdivisions=3)
         inscribed = np.min(np.abs(ico.face_normals * ico.triangles_center).sum(axis=1))
-        return Polyhedron.from_points(ico.vertices * (size[0] / inscribed))
+        ball = ico.vertices * (size[0] / inscribed)
+        if geom.kind == "sphere":
+            return Polyhedron.from_points(ball)
+        # a capsule is the hull of its two end balls: the hull of two circumscribing icospheres covers it
+        ends = np.array([[0.0, 0.0, -0.5 * size[1]], [0.0, 0.0, 0.5 * size[1]]])
+        return Polyhedron.from_points(np.concatenate([ball + ends[0], ball + ends[1]]))
     if geom.kind == "cylinder":
         grow = 1.0 / np.cos(np.pi / PRIMITIVE_SEGMENTS)
         cyl = trimesh.creation.cylinder(radius=size[0] * grow, height=size[1], sections=PRIMITIVE_SEGMENTS)
         return Polyhedron.from_points(cyl.vertices)
-    raise ValueError(f"unsupported primitive geometry {geom.kind!r}; supported: box, sphere, cylinder")
+    raise ValueError(f"unsupported primitive geometry {geom.kind!r}; supported: box, sphere, cylinder, capsule")
+
+
+def _primitive_shape(geom: PrimitiveGeometry) -> Sphere | Box | Capsule | None:
+    """spq's exact shape for a URDF primitive (centred on its origin, a capsule along its z axis), or
+    None for a cylinder, which keeps its circumscribing prism."""
+    size = np.asarray(geom.size, dtype=np.float64)
+    if geom.kind == "box":
+        return Box.from_size(*size)
+    if geom.kind == "sphere":
+        return Sphere(size[0])
+    if geom.kind == "capsule":
+        return Capsule(size[0], 0.5 * size[1])
+    return None
