@@ -80,8 +80,9 @@ class PinocchioScene:
 
 
 def build(scene, urdf, variant: str = "default", tolerance: float = 1e-6) -> PinocchioScene:
-    """The pinocchio peer of an spq Scene read from ``urdf``: its bodies' hulls (PCH) on the same
-    links and offsets, its pairs. ``variant``: a key of VARIANTS; ``tolerance``: coal's gjk_tolerance (m)."""
+    """The pinocchio peer of an spq Scene read from ``urdf``: its bodies' hulls (PCH; exact primitives
+    where the scene has them, see coal_geometry) on the same links and offsets, its pairs.
+    ``variant``: a key of VARIANTS; ``tolerance``: coal's gjk_tolerance (m)."""
     pin, coal = _import()
     if variant not in VARIANTS:
         raise ValueError(f"unknown pinocchio variant {variant!r}; choose one of {sorted(VARIANTS)}")
@@ -89,18 +90,14 @@ def build(scene, urdf, variant: str = "default", tolerance: float = 1e-6) -> Pin
     geometry = pin.GeometryModel()
     for body in scene.bodies:
         link = scene.model.link_names[body.link]
-        if not model.existFrame(link):
-            raise ValueError(f"pinocchio's model of {urdf} has no frame {link!r}")
-        fid = model.getFrameId(link)
+        # a link's frame is a BODY frame: a joint of the same name has a frame too (anymal's LF_HAA)
+        if not model.existFrame(link, pin.FrameType.BODY):
+            raise ValueError(f"pinocchio's model of {urdf} has no link frame {link!r}")
+        fid = model.getFrameId(link, pin.FrameType.BODY)
         frame = model.frames[fid]
         placement = frame.placement * pin.SE3(body.offset[:3, :3].copy(), body.offset[:3, 3].copy())
-        points = coal.StdVec_Vec3s()
-        points.extend(list(np.asarray(body.hull.vertices, dtype=np.float64)))
-        triangles = coal.StdVec_Triangle()
-        for i, j, k in np.asarray(body.hull.faces).tolist():
-            triangles.append(coal.Triangle(i, j, k))
-        shape = coal.Convex(points, triangles)
-        geometry.addGeometryObject(pin.GeometryObject(body.name, frame.parentJoint, fid, placement, shape))
+        geometry.addGeometryObject(pin.GeometryObject(body.name, frame.parentJoint, fid, placement,
+                                                      coal_geometry(body)))
     for a, b in np.asarray(scene.pairs).tolist():
         geometry.addCollisionPair(pin.CollisionPair(int(a), int(b)))
     gdata = pin.GeometryData(geometry)
@@ -122,6 +119,25 @@ def build(scene, urdf, variant: str = "default", tolerance: float = 1e-6) -> Pin
     idx, src, mult, off, cont = (np.array(c) for c in zip(*rows))
     return PinocchioScene(model, model.createData(), geometry, gdata, idx.astype(np.int64), src.astype(np.int64),
                           mult.astype(np.float64), off.astype(np.float64), cont.astype(bool), variant)
+
+
+def coal_geometry(body):
+    """coal's shape for a scene body, in the body's hull frame: its exact primitive where it has one
+    (coal.Sphere, coal.Box, coal.Capsule: what spq queries in place of the hull), else its hull as a
+    coal.Convex."""
+    _, coal = _import()
+    from spq.shapes.primitives import Box, Capsule, Sphere
+
+    shape = body.shape
+    if isinstance(shape, Sphere):
+        return coal.Sphere(shape.radius)
+    if isinstance(shape, Box):
+        return coal.Box(*(2.0 * shape.half_extents))  # coal takes the full edge lengths
+    if isinstance(shape, Capsule):
+        return coal.Capsule(shape.radius, 2.0 * shape.half_length)  # coal takes the segment's full length
+    from harness.engines.coal_engine import convex_from_mesh
+
+    return convex_from_mesh(np.asarray(body.hull.vertices, dtype=np.float64), np.asarray(body.hull.faces))
 
 
 def version() -> str:
