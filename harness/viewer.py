@@ -151,9 +151,8 @@ class SceneView:
 
                 body.cse = Superellipsoid.fit(body.hull.vertices)
             shape, local = self.scene._volume(body, kind)
-            mesh = _mesh(shape, self.tolerance).copy()
+            mesh = _mesh(shape, self.tolerance).copy()  # the copy keeps the metadata (STP-BV patch kinds)
             mesh.apply_transform(local)
-            mesh.metadata.update(shape_mesh_metadata(shape, mesh))
             self._volumes[key] = add_volume(self.server, f"/robot/{i}/{kind}", mesh, kind)
         return self._volumes[key]
 
@@ -284,10 +283,6 @@ class SceneView:
                     "kinds": {b.name: self.kind_shown(b) for b in self.scene.bodies}}
 
 
-def shape_mesh_metadata(shape, mesh) -> dict:
-    return {k: mesh.metadata[k] for k in ("face_kind",) if k in mesh.metadata}
-
-
 # --- a pair of shapes ---------------------------------------------------------------------------------
 @dataclass
 class PairSide:
@@ -317,10 +312,8 @@ def pair_side(spec: str, r: float, R: float, tolerance: float) -> PairSide:
     else:
         fit = Superellipsoid.fit(hull.vertices)
         shape, local = fit.shape, np.asarray(fit.pose, dtype=float)
-    mesh = _mesh(shape, tolerance).copy()
-    metadata = shape_mesh_metadata(shape, mesh)
+    mesh = _mesh(shape, tolerance).copy()  # the copy keeps the metadata (STP-BV patch kinds)
     mesh.apply_transform(local)
-    mesh.metadata.update(metadata)
     return PairSide(name, kind, shape, local, mesh)
 
 

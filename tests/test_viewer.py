@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,12 @@ import spq
 from harness.cli import main
 
 REPO = Path(__file__).resolve().parent.parent
-pytest.importorskip("viser", reason="spq view needs viser (pip install viser; pyproject lists it)")
+try:
+    import viser  # noqa: F401
+except ImportError:  # pragma: no cover - pyproject lists it; CI must have it
+    if os.environ.get("CI"):
+        raise
+    pytest.skip("spq view needs viser (pip install viser; pyproject lists it)", allow_module_level=True)
 
 
 def scene_file() -> Path:
