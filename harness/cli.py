@@ -61,13 +61,17 @@ def _suite(name: str, **values):
 
 
 def cmd_bench(args) -> int:
-    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot"}[args.suite]
+    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot", "robots": "robots"}[args.suite]
     extra = {"kind": args.suite} if suite == "bench" else {}
     if suite == "robot":
         extra["engines"] = args.engines or ["coal", "fcl"]
     from importlib import import_module
 
-    return run_suite(suite, config_from(args, import_module(f"harness.suites.{suite}").Config, **extra), args.out)
+    cls = import_module(f"harness.suites.{suite}").Config
+    # --configs and --steps not given: each robot suite's own sizes (robot 1000; robots by --quick)
+    extra.update({f.name: f.default for f in dataclasses.fields(cls)
+                  if f.name in ("configs", "steps") and getattr(args, f.name, None) is None})
+    return run_suite(suite, config_from(args, cls, **extra), args.out)
 
 
 def cmd_check(args) -> int:
@@ -204,10 +208,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_suite("support"))
 
     p = sub.add_parser("bench", help="throughput benchmarks")
-    p.add_argument("suite", choices=["pch", "stp", "table1", "robot"],
+    p.add_argument("suite", choices=["pch", "stp", "table1", "robot", "robots"],
                    help="pch: PCH-PCH, every engine; stp: STP-PCH and STP-STP (spq) beside PCH-PCH; "
                         "table1: the paper's Table I, PCH/STP/CSE pairs with coal's PCH-PCH beside; "
-                        "robot: all pairs of a robot per configuration, spq policies beside coal and fcl")
+                        "robot: all pairs of a robot per configuration, spq policies beside coal and fcl; "
+                        "robots: every robot of example-robot-data, one row each, beside pinocchio and coal")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)
@@ -217,10 +222,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m), stp suite")
     p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m), stp suite")
     p.add_argument("--robot", default="jvrc1", help="robot suite: a robot name (jvrc1, kuka_iiwa, panda)")
-    p.add_argument("--configs", type=int, default=1000, help="robot suite: random configurations")
-    p.add_argument("--steps", type=int, default=1000, help="robot suite: trajectory steps")
+    p.add_argument("--configs", type=int, help="robot(s) suites: random configurations (default: robot 1000, "
+                                                "robots 100, robots --quick 10)")
+    p.add_argument("--steps", type=int, help="robot(s) suites: trajectory steps (default: robot 1000, robots 200, "
+                                             "robots --quick 30)")
     p.add_argument("--prune", type=float, default=0.05, help="robot suite: pruning threshold (m) of the pruned rows")
-    p.add_argument("--engine-configs", type=int, help="robot suite: configurations coal and fcl run (default: all)")
+    p.add_argument("--engine-configs", type=int, help="robot suite: configurations coal and fcl run (default: all); "
+                                                      "robots suite: configurations coal runs (default 5, quick 2)")
+    p.add_argument("--robots", nargs="+", help="robots suite: robot names of example-robot-data (default: all)")
+    p.add_argument("--quick", action="store_true", help="robots suite: a few small robots, few configurations")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bench)

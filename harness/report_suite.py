@@ -295,6 +295,8 @@ LOOK = {
     "robot_engines.png": "Look at the bar lengths: time per configuration, shorter is faster.",
     "robot_trajectory.png": "Look at the x marks: gradient jumps of PCH-PCH that auto does not have.",
     "robot_distance_matrix.png": "Look for the darkest cells: the pairs that come closest at this posture.",
+    "robots_time_vs_pairs.png": "Look at the gap between the circles and the grey squares: spq's time and "
+                                "pinocchio's on the same robot.",
 }
 
 
@@ -394,6 +396,45 @@ def robot_section(out: Path) -> Section:
     return Section("Robot scene: whole-body self-distance", paragraphs, tables, charts)
 
 
+def robots_section(out: Path) -> Section:
+    table = _read(out, "robots.csv")
+    ran = table[table.status == "ran"]
+    others = table[table.status != "ran"]
+
+    def span(column: str, unit: str = "") -> str:
+        v = ran[column].dropna()
+        return f"{v.min():.3g}{unit} to {v.max():.3g}{unit} (median {v.median():.3g}{unit})" if len(v) else "none"
+
+    paragraphs = [
+        f"Every robot of the pip package example-robot-data ({len(table)} URDF files; {len(ran)} ran): collision "
+        "meshes as convex hulls, boxes, spheres and capsules as spq's exact shapes, cylinders as circumscribing "
+        "64-gon prisms, adjacent links skipped, the root fixed. One row per robot: "
+        f"{int(ran.pairs.min()) if len(ran) else 0} to {int(ran.pairs.max()) if len(ran) else 0} pairs.",
+        f"All pairs per configuration, cold: spq pch {span('pch_cold_ms', ' ms')}, auto {span('auto_cold_ms', ' ms')}; "
+        f"pinocchio.computeDistances (its fastest GJK variant per robot, timed in turn) {span('pinocchio_ms', ' ms')}. "
+        f"pinocchio's time over spq's: pch {span('pinocchio_over_pch', 'x')}, auto {span('pinocchio_over_auto', 'x')}. "
+        f"Warm-started along a trajectory: pch {span('pch_coherent_ms', ' ms')}, auto {span('auto_coherent_ms', ' ms')}.",
+        f"Agreement with spq's pch distances on pairs spq finds separated: coal largest difference "
+        f"{ran.coal_max_diff_m.max():.2g} m, pinocchio (coal's gjk_tolerance 1e-6) {ran.pinocchio_max_diff_m.max():.2g} m; "
+        f"overlap verdicts that disagree: coal {int(ran.coal_overlap_disagreements.sum())}, pinocchio "
+        f"{int(ran.pinocchio_overlap_disagreements.sum())}.",
+        f"Gradient jumps of the closest pair along a smooth trajectory (confirmed by bisection): pch "
+        f"{int(ran.pch_jumps.sum())} over {int((ran.pch_jumps > 0).sum())} robots, auto {int(ran.auto_jumps.sum())} "
+        f"over {int((ran.auto_jumps > 0).sum())} robots.",
+    ]
+    if len(others):
+        paragraphs.append("Not benchmarked: " + "; ".join(f"{r.robot} ({r.status}: {r.reason})"
+                                                          for r in others.itertuples()) + ".")
+    partial = ran[ran.reason.fillna("").astype(str).str.len() > 0]
+    if len(partial):
+        paragraphs.append("Ran in part: " + "; ".join(f"{r.robot}: {r.reason}" for r in partial.itertuples()) + ".")
+    chart = Chart(out / "robots_time_vs_pairs.png",
+                  "All-pairs time per configuration (ms, log scale) against the number of pairs queried (log scale), "
+                  "one point per robot of example-robot-data: spq pch and auto cold (open circles) and warm-started "
+                  "along a trajectory (crosses), pinocchio.computeDistances in its fastest GJK variant (grey squares).")
+    return Section("The field's robots: example-robot-data", paragraphs, [("Per robot", table)], [chart])
+
+
 def _config(module: str, **fixed) -> Callable[[bool, int, Path], object]:
     """(quick, seed, out) -> module's Config with the fixed fields: a dict as a field's value holds its
     quick setting under True and its full one under False (None: the suite's default); a callable is
@@ -431,6 +472,7 @@ SUITES = [
     Suite("bench robot", "robot", _config("robot", robot=report_robot, configs={True: 40, False: None},
                                           steps={True: 200, False: None}, repeats={True: 1, False: None},
                                           engine_configs={True: 10, False: None}), robot_section),
+    Suite("bench robots", "robots", _config("robots", quick={True: True, False: False}), robots_section),
     Suite("check", "check", check_config, check_section),
 ]
 
