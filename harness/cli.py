@@ -147,6 +147,24 @@ def cmd_history(args) -> int:
     return 0
 
 
+def _workers(text: str) -> int:
+    """--workers: an integer >= 1 (spq.workers checks the range)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1; got {text!r}") from None
+
+
+def _spread_arguments(p, unit: str) -> None:
+    """--workers and --scheduler of a suite whose tasks may run on processes or a Dask cluster."""
+    p.add_argument("--workers", type=_workers, default=1,
+                   help=f"processes, one {unit} (with its own seed) at a time each; the results equal the serial "
+                        "run's (default 1: serial); with --scheduler local, the Dask LocalCluster's size")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the tasks on a Dask cluster: a scheduler address (tcp://HOST:8786) or 'local' "
+                        "for a LocalCluster of --workers processes (needs pip install \"dask[distributed]\")")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spq", description="Smooth Proximity Queries: measurements.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -169,6 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a plugin engine adapter to add (repeatable); see harness/engines/base.py")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="output folder (default: reports)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _spread_arguments(p, "object pair")
     p.set_defaults(func=_suite("crosscheck", engines=lambda a: _with_plugins(a.engines, a.engine)))
 
     p = sub.add_parser("bench-support", help="STP-BV support time against feature count (paper Fig. 6/7)")
@@ -201,6 +220,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=1000, help="robot suite: trajectory steps")
     p.add_argument("--prune", type=float, default=0.05, help="robot suite: pruning threshold (m) of the pruned rows")
     p.add_argument("--engine-configs", type=int, help="robot suite: configurations coal and fcl run (default: all)")
+    p.add_argument("--workers", type=_workers, default=1,
+                   help="threads of spq's batched rows (pch, stp) and cold scene rows (robot), the results equal "
+                        "one thread's; coherent runs stay on one thread (default 1)")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bench)
@@ -218,6 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quick", action="store_true", help="one pose per case and fewer sweeps (seconds)")
     p.add_argument("--quiet", action="store_true")
+    _spread_arguments(p, "case")
     p.set_defaults(func=_suite("stability"))
 
     p = sub.add_parser("depth", help="spq's penetration depth against an independent oracle (STP-BV and CSE pairs)")
