@@ -61,8 +61,10 @@ def _suite(name: str, **values):
 
 
 def cmd_bench(args) -> int:
-    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot"}[args.suite]
+    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot", "scaling": "scaling"}[args.suite]
     extra = {"kind": args.suite} if suite == "bench" else {}
+    if args.workers is None:  # the suite's own default (1; 2 for scaling)
+        del args.workers
     if suite == "robot":
         extra["engines"] = args.engines or ["coal", "fcl"]
     from importlib import import_module
@@ -203,10 +205,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_suite("support"))
 
     p = sub.add_parser("bench", help="throughput benchmarks")
-    p.add_argument("suite", choices=["pch", "stp", "table1", "robot"],
+    p.add_argument("suite", choices=["pch", "stp", "table1", "robot", "scaling"],
                    help="pch: PCH-PCH, every engine; stp: STP-PCH and STP-STP (spq) beside PCH-PCH; "
                         "table1: the paper's Table I, PCH/STP/CSE pairs with coal's PCH-PCH beside; "
-                        "robot: all pairs of a robot per configuration, spq policies beside coal and fcl")
+                        "robot: all pairs of a robot per configuration, spq policies beside coal and fcl; "
+                        "scaling: 1 against --workers (default 2) workers on batched queries, a scene sweep and "
+                        "the crosscheck, results compared (a few minutes)")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)
@@ -220,9 +224,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=1000, help="robot suite: trajectory steps")
     p.add_argument("--prune", type=float, default=0.05, help="robot suite: pruning threshold (m) of the pruned rows")
     p.add_argument("--engine-configs", type=int, help="robot suite: configurations coal and fcl run (default: all)")
-    p.add_argument("--workers", type=_workers, default=1,
+    p.add_argument("--workers", type=_workers, default=None,
                    help="threads of spq's batched rows (pch, stp) and cold scene rows (robot), the results equal "
-                        "one thread's; coherent runs stay on one thread (default 1)")
+                        "one thread's; coherent runs stay on one thread (default 1); scaling: the workers set "
+                        "against one (default 2)")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bench)
