@@ -39,24 +39,37 @@ class Config:
     queries: int = 200_000  # pose pairs per batched run
     robot: str = "jvrc1"  # the scene sweep's robot (jvrc1 needs the shared data; kuka_iiwa, panda come with pybullet)
     scene_configs: int = 2000  # configurations per scene sweep
-    per_bucket: int = 26  # crosscheck poses per distance bucket (over all pairs)
-    agreement: int = 20_000  # crosscheck: random poses of spq against coal
+    per_bucket: int = 100  # crosscheck poses per distance bucket (over all pairs): some 100 s serial here
+    agreement: int = 100_000  # crosscheck: random poses of spq against coal
     engines: list[str] | None = None  # crosscheck engines (None: every one that imports)
     dask: bool = True  # also run the crosscheck on a Dask LocalCluster and compare it with the serial run
     progress: bool = False
 
 
-def _interleaved(one, many, repeats: int, say) -> tuple[float, float, object, object]:
-    """(best seconds of one(), of many(), last results) over interleaved rounds."""
+def _cpu_seconds() -> float:
+    """CPU time of this process and of its finished (waited-for) child processes, s."""
+    import resource
+
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + children.ru_utime + children.ru_stime
+
+
+def _interleaved(one, many, repeats: int, say) -> tuple[float, float, object, object, float, float]:
+    """(best seconds of one(), of many(), last results, and the cores each best run kept busy: its
+    CPU time, child processes included, over its wall time) over interleaved rounds."""
     best = [np.inf, np.inf]
+    cores = [np.nan, np.nan]
     out = [None, None]
     for r in range(repeats):
         for k, fn in enumerate((one, many)):
-            t0 = time.perf_counter()
+            c0, t0 = _cpu_seconds(), time.perf_counter()
             out[k] = fn()
-            best[k] = min(best[k], time.perf_counter() - t0)
-        say(f"    round {r + 1}: best so far {best[0]:.3g} s vs {best[1]:.3g} s")
-    return best[0], best[1], out[0], out[1]
+            wall = time.perf_counter() - t0
+            if wall < best[k]:
+                best[k], cores[k] = wall, (_cpu_seconds() - c0) / wall
+        say(f"    round {r + 1}: best so far {best[0]:.3g} s vs {best[1]:.3g} s (cores busy {cores[0]:.2f} vs "
+            f"{cores[1]:.2f}), load average {os.getloadavg()[0]:.2f}")
+    return best[0], best[1], out[0], out[1], cores[0], cores[1]
 
 
 def _same_batches(a, b) -> bool:
@@ -107,10 +120,11 @@ def run(config: Config) -> Output:
         qa, qb = pa[:queries], pb[:queries]
         spq.distances(a, b, qa[:64], qb[:64], workers=n)  # load the kernels, start the threads
         say(f"batched queries {label}, {queries} poses")
-        t1, tn, r1, rn = _interleaved(lambda: spq.distances(a, b, qa, qb), lambda: spq.distances(a, b, qa, qb, workers=n),
-                                      config.repeats, say)
+        t1, tn, r1, rn, c1, cn = _interleaved(lambda: spq.distances(a, b, qa, qb),
+                                              lambda: spq.distances(a, b, qa, qb, workers=n), config.repeats, say)
         rows.append({"work": f"batched queries {label} (spq.distances)", "size": f"{queries} poses",
                      "parallelism": f"{n} threads", "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn,
+                     "cores_busy_1": c1, "cores_busy_n": cn,
                      "identical": _same_batches(r1, rn), "target": TARGET if label == "PCH-PCH" else np.nan})
 
     files = robot_files(config.robot)
@@ -119,11 +133,12 @@ def run(config: Config) -> Output:
     qs = np.array([scene.random_configuration(rng) for _ in range(config.scene_configs)])
     scene.distances_many(qs[:8], workers=n)
     say(f"scene sweep {config.robot} auto, {len(scene.pairs)} pairs, {len(qs)} configurations, cold")
-    t1, tn, r1, rn = _interleaved(lambda: scene.distances_many(qs), lambda: scene.distances_many(qs, workers=n),
-                                  config.repeats, say)
+    t1, tn, r1, rn, c1, cn = _interleaved(lambda: scene.distances_many(qs),
+                                          lambda: scene.distances_many(qs, workers=n), config.repeats, say)
     rows.append({"work": f"cold scene sweep {config.robot} auto (Scene.distances_many)",
                  "size": f"{len(qs)} configurations x {len(scene.pairs)} pairs", "parallelism": f"{n} threads",
-                 "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn, "identical": r1.tobytes() == rn.tobytes(),
+                 "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn, "cores_busy_1": c1, "cores_busy_n": cn,
+                 "identical": r1.tobytes() == rn.tobytes(),
                  "target": np.nan})
 
     def crosscheck_config(**spread) -> crosscheck.Config:
@@ -131,19 +146,21 @@ def run(config: Config) -> Output:
                                  engines=config.engines, **spread)
 
     say(f"crosscheck, {config.per_bucket} poses per bucket, {config.agreement} agreement poses")
-    t1, tn, serial, spread = _interleaved(lambda: crosscheck.run(crosscheck_config()),
-                                          lambda: crosscheck.run(crosscheck_config(workers=n)), config.repeats, say)
+    t1, tn, serial, spread, c1, cn = _interleaved(lambda: crosscheck.run(crosscheck_config()),
+                                                  lambda: crosscheck.run(crosscheck_config(workers=n)),
+                                                  config.repeats, say)
     size = f"{len(serial.raw['crosscheck.csv.gz'])} engine results + {config.agreement} agreement poses"
     rows.append({"work": "crosscheck (every engine against the exact reference)", "size": size,
                  "parallelism": f"{n} local processes", "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn,
-                 "identical": same_outputs(serial, spread), "target": TARGET})
+                 "cores_busy_1": c1, "cores_busy_n": cn, "identical": same_outputs(serial, spread), "target": TARGET})
     if config.dask:
         say(f"crosscheck on a Dask LocalCluster of {n} processes (once)")
-        t0 = time.perf_counter()
+        c0, t0 = _cpu_seconds(), time.perf_counter()
         on_dask = crosscheck.run(crosscheck_config(workers=n, scheduler="local"))
         seconds = time.perf_counter() - t0
         rows.append({"work": "crosscheck on a Dask LocalCluster", "size": size, "parallelism": f"{n} Dask workers",
-                     "seconds_1": t1, "seconds_n": seconds, "speedup": t1 / seconds,
+                     "seconds_1": t1, "seconds_n": seconds, "speedup": t1 / seconds, "cores_busy_1": c1,
+                     "cores_busy_n": (_cpu_seconds() - c0) / seconds,
                      "identical": same_outputs(serial, on_dask), "target": np.nan})
     table = pd.DataFrame(rows)
     table["meets_target"] = np.where(table.target.notna(), table.speedup >= table.target, np.nan)
@@ -156,7 +173,9 @@ def run(config: Config) -> Output:
              "are the same bit for bit (batched queries and scene: every field of every query; crosscheck: every "
              "table, timing columns aside). Threads for spq's compiled batches (the kernels release the GIL), "
              "processes for the crosscheck (the external engines hold it). The Dask row is one run, its speedup "
-             f"against the best serial time. {os.cpu_count()} cores, shared: load average "
+             "against the best serial time. cores_busy: CPU seconds of the run (its threads, and its child processes "
+             "once they ended) over its wall seconds, for the best round: how many cores the run got. "
+             f"{os.cpu_count()} cores, shared: load average "
              f"{load_before[0]:.2f} before, {load_after[0]:.2f} after (1 min); N workers reach N times only on N "
              f"idle cores. target: issue 28's {TARGET}x.")
     out = Output(meta=meta, tables=[Table("scaling", f"Scaling: 1 against {n} workers", table, notes)])
