@@ -7,8 +7,9 @@ stability case), runs ``fn(task)`` for each, and reassembles the results in task
 is the serial run's whatever ran where. Three ways to run them:
 
 - ``workers=1`` and no scheduler: in this process, one after the other (the serial run itself);
-- ``workers=N`` and no scheduler: a pool of N processes on this machine (the standard library's,
-  spawned; the external engines hold the GIL, so threads would not help);
+- ``workers=N`` and no scheduler: N processes on this machine, this one and N - 1 spawned ones (the
+  external engines hold the GIL, so threads would not help); this process, whose modules are loaded
+  already, starts on the first task while the others start up;
 - ``scheduler="local"``: a Dask ``LocalCluster`` of ``workers`` processes on this machine;
   ``scheduler="tcp://HOST:8786"``: the workers of an existing Dask cluster (see the README).
 
@@ -67,16 +68,7 @@ def run_tasks(fn: Callable, tasks: Sequence, workers: int = 1, scheduler: str | 
                 done(i, results[i])
         return results
     if scheduler is None:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(fn, tasks[i]): i for i in order}
-            for future in as_completed(futures):
-                i = futures[future]
-                results[i] = future.result()
-                if done:
-                    done(i, results[i])
-        return results
+        return _run_here_and_in_children(fn, tasks, min(workers, len(tasks)), order, done)
     with dask_client(scheduler, workers) as (client, as_completed):
         futures = [client.submit(fn, tasks[i], key=f"spq-task-{os.getpid()}-{id(tasks)}-{i}", pure=False)
                    for i in order]
@@ -86,6 +78,54 @@ def run_tasks(fn: Callable, tasks: Sequence, workers: int = 1, scheduler: str | 
             results[i] = future.result()
             if done:
                 done(i, results[i])
+    return results
+
+
+def _run_here_and_in_children(fn: Callable, tasks: Sequence, workers: int, order: list, done) -> list:
+    """run_tasks on this process and workers - 1 spawned ones: each takes the next task in ``order``
+    as it becomes free (a thread here hands the children theirs). What this process built for its
+    tasks (process_cache) is closed at the end."""
+    import threading
+    from concurrent.futures import ProcessPoolExecutor
+
+    results = [None] * len(tasks)
+    pending = iter(order)
+    lock = threading.Lock()
+    failures: list[BaseException] = []
+    cached_before = set(_CACHE)
+
+    def take():
+        with lock:
+            return None if failures else next(pending, None)
+
+    def finish(i: int, result) -> None:
+        results[i] = result
+        if done:
+            with lock:
+                done(i, result)
+
+    def feed(pool) -> None:  # a thread per child process: its next task, until none is left
+        try:
+            while (i := take()) is not None:
+                finish(i, pool.submit(fn, tasks[i]).result())
+        except BaseException as exc:
+            failures.append(exc)
+
+    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=mp.get_context("spawn")) as pool:
+        feeders = [threading.Thread(target=feed, args=(pool,), daemon=True) for _ in range(workers - 1)]
+        for t in feeders:
+            t.start()
+        try:
+            while (i := take()) is not None:
+                finish(i, fn(tasks[i]))
+        except BaseException as exc:
+            failures.append(exc)
+        finally:
+            for t in feeders:
+                t.join()
+            _close_cached(set(_CACHE) - cached_before)
+    if failures:
+        raise failures[0]
     return results
 
 
@@ -137,14 +177,24 @@ def check_may_start_children(what: str) -> None:
                            "(see the README, 'On a cluster')")
 
 
-_CACHE: dict = {}
+_CACHE: dict = {}  # key -> (value, close or None)
 
 
 def process_cache(key, build: Callable, close: Callable | None = None):
     """build() once per process and key, kept for the process's later tasks (engines, whose child
-    processes take seconds to start), and closed with close(value) when the process exits."""
+    processes take seconds to start), and closed with close(value) when the process exits (or, in the
+    process that hands out the tasks, when they are done)."""
     if key not in _CACHE:
-        _CACHE[key] = build()
+        value = build()
+        _CACHE[key] = (value, close)
         if close is not None:
-            atexit.register(close, _CACHE[key])
-    return _CACHE[key]
+            atexit.register(close, value)
+    return _CACHE[key][0]
+
+
+def _close_cached(keys) -> None:
+    for key in keys:
+        value, close = _CACHE.pop(key)
+        if close is not None:
+            atexit.unregister(close)
+            close(value)

@@ -156,3 +156,8 @@ def test_a_cold_scene_sweep_on_a_dask_local_cluster_equals_the_serial_run(arm_sw
 
     scene, qs, serial = arm_sweep
     assert_same_sweep(serial, sr.run_scene_spread(scene, qs, prune=0.05, scheduler=dask_scheduler))
+
+
+def test_a_failing_task_raises_its_error_here():
+    with pytest.raises(ValueError, match="invalid literal"):
+        cluster.run_tasks(int, ["1", "x", "3", "4"], workers=2)
