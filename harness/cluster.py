@@ -9,7 +9,8 @@ is the serial run's whatever ran where. Three ways to run them:
 - ``workers=1`` and no scheduler: in this process, one after the other (the serial run itself);
 - ``workers=N`` and no scheduler: N processes on this machine, this one and N - 1 spawned ones (the
   external engines hold the GIL, so threads would not help); this process, whose modules are loaded
-  already, starts on the first task while the others start up;
+  already, starts on the first task while the others start up. Each runs its linear algebra on one
+  thread (threadpoolctl), so that N workers keep N cores busy, as Dask's workers do by default;
 - ``scheduler="local"``: a Dask ``LocalCluster`` of ``workers`` processes on this machine;
   ``scheduler="tcp://HOST:8786"``: the workers of an existing Dask cluster (see the README).
 
@@ -111,7 +112,10 @@ def _run_here_and_in_children(fn: Callable, tasks: Sequence, workers: int, order
         except BaseException as exc:
             failures.append(exc)
 
-    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=mp.get_context("spawn")) as pool:
+    from threadpoolctl import threadpool_limits
+
+    with ProcessPoolExecutor(max_workers=workers - 1, mp_context=mp.get_context("spawn"),
+                             initializer=one_blas_thread) as pool, threadpool_limits(limits=1):
         feeders = [threading.Thread(target=feed, args=(pool,), daemon=True) for _ in range(workers - 1)]
         for t in feeders:
             t.start()
@@ -127,6 +131,15 @@ def _run_here_and_in_children(fn: Callable, tasks: Sequence, workers: int, order
     if failures:
         raise failures[0]
     return results
+
+
+def one_blas_thread() -> None:
+    """Limit this process's BLAS and OpenMP pools to one thread (a worker is one core): OpenBLAS's
+    threads on the reference's small matrices cost more than they gain, and beside another worker
+    they oversubscribe the cores."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)
 
 
 def import_dask():

@@ -54,22 +54,20 @@ def _cpu_seconds() -> float:
     return time.process_time() + children.ru_utime + children.ru_stime
 
 
-def _interleaved(one, many, repeats: int, say) -> tuple[float, float, object, object, float, float]:
-    """(best seconds of one(), of many(), last results, and the cores each best run kept busy: its
-    CPU time, child processes included, over its wall time) over interleaved rounds."""
-    best = [np.inf, np.inf]
-    cores = [np.nan, np.nan]
-    out = [None, None]
+def _interleaved(fns, repeats: int, say):
+    """(best seconds, last results, cores busy) of each of the calls ``fns`` over interleaved rounds:
+    cores busy = the best run's CPU time, child processes included, over its wall time."""
+    best, cores, out = [np.inf] * len(fns), [np.nan] * len(fns), [None] * len(fns)
     for r in range(repeats):
-        for k, fn in enumerate((one, many)):
+        for k, fn in enumerate(fns):
             c0, t0 = _cpu_seconds(), time.perf_counter()
             out[k] = fn()
             wall = time.perf_counter() - t0
             if wall < best[k]:
                 best[k], cores[k] = wall, (_cpu_seconds() - c0) / wall
-        say(f"    round {r + 1}: best so far {best[0]:.3g} s vs {best[1]:.3g} s (cores busy {cores[0]:.2f} vs "
-            f"{cores[1]:.2f}), load average {os.getloadavg()[0]:.2f}")
-    return best[0], best[1], out[0], out[1], cores[0], cores[1]
+        say(f"    round {r + 1}: best so far " + " vs ".join(f"{b:.3g} s" for b in best)
+            + " (cores busy " + " vs ".join(f"{c:.2f}" for c in cores) + f"), load average {os.getloadavg()[0]:.2f}")
+    return best, out, cores
 
 
 def _same_batches(a, b) -> bool:
@@ -99,6 +97,8 @@ def run(config: Config) -> Output:
     from harness.poses import random_poses
     from harness.report.meta import run_metadata
     from harness.suites import crosscheck
+    from threadpoolctl import threadpool_limits
+
     from spq.workers import check_workers
 
     n = check_workers(config.workers)
@@ -120,8 +120,9 @@ def run(config: Config) -> Output:
         qa, qb = pa[:queries], pb[:queries]
         spq.distances(a, b, qa[:64], qb[:64], workers=n)  # load the kernels, start the threads
         say(f"batched queries {label}, {queries} poses")
-        t1, tn, r1, rn, c1, cn = _interleaved(lambda: spq.distances(a, b, qa, qb),
-                                              lambda: spq.distances(a, b, qa, qb, workers=n), config.repeats, say)
+        (t1, tn), (r1, rn), (c1, cn) = _interleaved([lambda: spq.distances(a, b, qa, qb),
+                                                      lambda: spq.distances(a, b, qa, qb, workers=n)],
+                                                     config.repeats, say)
         rows.append({"work": f"batched queries {label} (spq.distances)", "size": f"{queries} poses",
                      "parallelism": f"{n} threads", "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn,
                      "cores_busy_1": c1, "cores_busy_n": cn,
@@ -133,8 +134,8 @@ def run(config: Config) -> Output:
     qs = np.array([scene.random_configuration(rng) for _ in range(config.scene_configs)])
     scene.distances_many(qs[:8], workers=n)
     say(f"scene sweep {config.robot} auto, {len(scene.pairs)} pairs, {len(qs)} configurations, cold")
-    t1, tn, r1, rn, c1, cn = _interleaved(lambda: scene.distances_many(qs),
-                                          lambda: scene.distances_many(qs, workers=n), config.repeats, say)
+    (t1, tn), (r1, rn), (c1, cn) = _interleaved([lambda: scene.distances_many(qs),
+                                                  lambda: scene.distances_many(qs, workers=n)], config.repeats, say)
     rows.append({"work": f"cold scene sweep {config.robot} auto (Scene.distances_many)",
                  "size": f"{len(qs)} configurations x {len(scene.pairs)} pairs", "parallelism": f"{n} threads",
                  "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn, "cores_busy_1": c1, "cores_busy_n": cn,
@@ -145,14 +146,24 @@ def run(config: Config) -> Output:
         return crosscheck.Config(per_bucket=config.per_bucket, agreement_poses=config.agreement, seed=config.seed,
                                  engines=config.engines, **spread)
 
-    say(f"crosscheck, {config.per_bucket} poses per bucket, {config.agreement} agreement poses")
-    t1, tn, serial, spread, c1, cn = _interleaved(lambda: crosscheck.run(crosscheck_config()),
-                                                  lambda: crosscheck.run(crosscheck_config(workers=n)),
-                                                  config.repeats, say)
+    say(f"crosscheck, {config.per_bucket} poses per bucket, {config.agreement} agreement poses: serial as by default, "
+        f"serial on one BLAS thread, {n} workers (one BLAS thread each)")
+
+    def serial_one_thread():
+        with threadpool_limits(limits=1):
+            return crosscheck.run(crosscheck_config())
+
+    (t0, t1, tn), (default, serial, spread), (c0, c1, cn) = _interleaved(
+        [lambda: crosscheck.run(crosscheck_config()), serial_one_thread,
+         lambda: crosscheck.run(crosscheck_config(workers=n))], config.repeats, say)
     size = f"{len(serial.raw['crosscheck.csv.gz'])} engine results + {config.agreement} agreement poses"
     rows.append({"work": "crosscheck (every engine against the exact reference)", "size": size,
                  "parallelism": f"{n} local processes", "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn,
                  "cores_busy_1": c1, "cores_busy_n": cn, "identical": same_outputs(serial, spread), "target": TARGET})
+    rows.append({"work": "crosscheck, against the serial run as by default (OpenBLAS threads on every core)",
+                 "size": size, "parallelism": f"{n} local processes", "seconds_1": t0, "seconds_n": tn,
+                 "speedup": t0 / tn, "cores_busy_1": c0, "cores_busy_n": cn, "identical": same_outputs(default, spread),
+                 "target": np.nan})
     if config.dask:
         say(f"crosscheck on a Dask LocalCluster of {n} processes (once)")
         c0, t0 = _cpu_seconds(), time.perf_counter()
@@ -172,8 +183,11 @@ def run(config: Config) -> Output:
              f"run, then the {n}-worker run), best of each; speedup = seconds_1 / seconds_n. identical: the results "
              "are the same bit for bit (batched queries and scene: every field of every query; crosscheck: every "
              "table, timing columns aside). Threads for spq's compiled batches (the kernels release the GIL), "
-             "processes for the crosscheck (the external engines hold it). The Dask row is one run, its speedup "
-             "against the best serial time. cores_busy: CPU seconds of the run (its threads, and its child processes "
+             "processes for the crosscheck (the external engines hold it), each with one BLAS thread "
+             "(threadpoolctl; Dask's workers have one by default), and the 1-worker crosscheck on one BLAS thread "
+             "too, so that N workers are N cores against one; the second crosscheck row takes the serial run as "
+             "it runs by default, OpenBLAS on every core, which on the reference's small matrices costs more than "
+             "it gains. The Dask row is one run, its speedup against the best one-thread serial time. cores_busy: CPU seconds of the run (its threads, and its child processes "
              "once they ended) over its wall seconds, for the best round: how many cores the run got. "
              f"{os.cpu_count()} cores, shared: load average "
              f"{load_before[0]:.2f} before, {load_after[0]:.2f} after (1 min); N workers reach N times only on N "
