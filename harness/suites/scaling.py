@@ -39,7 +39,7 @@ class Config:
     queries: int = 200_000  # pose pairs per batched run
     robot: str = "jvrc1"  # the scene sweep's robot (jvrc1 needs the shared data; kuka_iiwa, panda come with pybullet)
     scene_configs: int = 2000  # configurations per scene sweep
-    per_bucket: int = 100  # crosscheck poses per distance bucket (over all pairs): some 100 s serial here
+    per_bucket: int = 250  # crosscheck poses per distance bucket (over all pairs): some 80 s serial here
     agreement: int = 100_000  # crosscheck: random poses of spq against coal
     engines: list[str] | None = None  # crosscheck engines (None: every one that imports)
     dask: bool = True  # also run the crosscheck on a Dask LocalCluster and compare it with the serial run
@@ -153,9 +153,9 @@ def run(config: Config) -> Output:
         with threadpool_limits(limits=1):
             return crosscheck.run(crosscheck_config())
 
-    (t0, t1, tn), (default, serial, spread), (c0, c1, cn) = _interleaved(
-        [lambda: crosscheck.run(crosscheck_config()), serial_one_thread,
-         lambda: crosscheck.run(crosscheck_config(workers=n))], config.repeats, say)
+    (t0,), (default,), (c0,) = _interleaved([lambda: crosscheck.run(crosscheck_config())], 1, say)  # once: context
+    (t1, tn), (serial, spread), (c1, cn) = _interleaved(
+        [serial_one_thread, lambda: crosscheck.run(crosscheck_config(workers=n))], config.repeats, say)
     size = f"{len(serial.raw['crosscheck.csv.gz'])} engine results + {config.agreement} agreement poses"
     rows.append({"work": "crosscheck (every engine against the exact reference)", "size": size,
                  "parallelism": f"{n} local processes", "seconds_1": t1, "seconds_n": tn, "speedup": t1 / tn,
@@ -187,7 +187,8 @@ def run(config: Config) -> Output:
              "(threadpoolctl; Dask's workers have one by default), and the 1-worker crosscheck on one BLAS thread "
              "too, so that N workers are N cores against one; the second crosscheck row takes the serial run as "
              "it runs by default, OpenBLAS on every core, which on the reference's small matrices costs more than "
-             "it gains. The Dask row is one run, its speedup against the best one-thread serial time. cores_busy: CPU seconds of the run (its threads, and its child processes "
+             "it gains (timed once, before the rounds). The Dask row is one run, its speedup against the best "
+             "one-thread serial time. cores_busy: CPU seconds of the run (its threads, and its child processes "
              "once they ended) over its wall seconds, for the best round: how many cores the run got. "
              f"{os.cpu_count()} cores, shared: load average "
              f"{load_before[0]:.2f} before, {load_after[0]:.2f} after (1 min); N workers reach N times only on N "
