@@ -31,6 +31,7 @@ class BenchConfig:
     r: float = 0.005  # STP-BV radii (m), for the STP pairs
     R: float = 2.0
     pairs: list[str] = field(default_factory=lambda: ["PCH-PCH"])
+    workers: int = 1  # > 1: spq's batched rows also on this many threads (spq.workers), beside one thread's
 
 
 def best_time(fn, repeats: int, setup=None) -> tuple[float, np.ndarray]:
@@ -92,9 +93,24 @@ def _signed_modes(shape_a, shape_b) -> list[tuple[str, object]]:
     return [("batched signed", batched), ("per-call signed", per_call)]
 
 
+def _threaded_modes(shape_a, shape_b, tol: float, rel_tol: float, workers: int) -> list[tuple[str, object]]:
+    """spq's batched modes, unsigned and signed, on ``workers`` threads (their results equal the
+    one-thread batches' bit for bit), as timing_modes."""
+    import spq
+
+    def batched(signed: bool):
+        def run(poses_a, poses_b):
+            return spq.distances(shape_a, shape_b, poses_a, poses_b, tol=tol, rel_tol=rel_tol, signed=signed,
+                                 workers=workers).distance
+        return run
+
+    return [(f"batched {workers} workers", batched(False)), (f"batched signed {workers} workers", batched(True))]
+
+
 def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.DataFrame:
     """Queries per second per pair type, engine and mode on two copies of one object, with the
     ratio to coal's PCH-PCH rate. External engines only run PCH-PCH (they have no STP-BV).
+    config.workers > 1 adds spq's batched modes on that many threads.
 
     coal always runs with signed distance on (its EPA on overlaps); spq runs unsigned (overlaps get
     distance 0) and, in the modes named "signed", with signed=True. Every job runs on all poses
@@ -103,6 +119,9 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
     PCH-PCH rate on the same poses."""
     from tqdm import tqdm
 
+    from spq.workers import check_workers
+
+    workers = check_workers(config.workers)
     shapes = _shapes(config, load_object)
     poses_a, poses_b = random_poses(config.poses, config.seed, config.translation_range)
     engines = available_engines(config.engines)
@@ -118,6 +137,9 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
             pair = engines[name].prepare(shapes[a_kind], shapes[b_kind])
             prepared.append(pair)
             extra = _signed_modes(shapes[a_kind], shapes[b_kind]) if name == "spq" else []
+            if name == "spq" and workers > 1:
+                extra += _threaded_modes(shapes[a_kind], shapes[b_kind], engines[name].tolerance, engines[name].rel_tol,
+                                         workers)
             for mode, fn in timing_modes(pair) + extra:
                 fn(poses_a[:8], poses_b[:8])  # compile and warm
                 modes[(pair_type, name, mode)] = fn

@@ -61,8 +61,10 @@ def _suite(name: str, **values):
 
 
 def cmd_bench(args) -> int:
-    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot", "robots": "robots"}[args.suite]
+    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot", "robots": "robots", "scaling": "scaling"}[args.suite]
     extra = {"kind": args.suite} if suite == "bench" else {}
+    if args.workers is None:  # the suite's own default (1; 2 for scaling)
+        del args.workers
     if suite == "robot":
         extra["engines"] = args.engines or ["coal", "fcl"]
     from importlib import import_module
@@ -96,6 +98,11 @@ def cmd_report(args) -> int:
 def cmd_scene(args) -> int:
     from harness import scene_file as sf
     from harness import scene_run as sr
+    from harness.cluster import check_scheduler, describe
+    from spq.workers import check_workers
+
+    check_workers(args.workers)
+    check_scheduler(args.scheduler)
 
     start = time.perf_counter()
     try:
@@ -118,11 +125,24 @@ def cmd_scene(args) -> int:
     print(f"poses           {spec.poses.describe()}")
     print(f"built in {time.perf_counter() - start:.1f} s")
 
-    run = sr.run_scene(scene, qs, spec.poses.coherent, spec.poses.prune, progress=not args.quiet)
+    spread = args.workers > 1 or args.scheduler is not None
+    if spread and spec.poses.coherent:
+        print("coherent sweep: serial (each pair starts from its previous simplex, so the order matters); "
+              "--workers and --scheduler apply to cold sweeps")
+        spread = False
+    if spread:
+        run = sr.run_scene_spread(scene, qs, spec.poses.prune, args.workers, args.scheduler, progress=not args.quiet)
+    else:
+        run = sr.run_scene(scene, qs, spec.poses.coherent, spec.poses.prune, progress=not args.quiet)
     ms = run.seconds * 1e3
     a, b = scene.pair_names[run.min_pair[run.closest]]
     print(f"\nconfigurations  {run.configurations}")
-    print(f"time per config mean {ms.mean():.3g} ms, median {np.median(ms):.3g} ms (one call each)")
+    if spread:
+        where = f"{args.workers} threads" if args.scheduler is None else describe(args.workers, args.scheduler)
+        print(f"time per config {ms.mean():.3g} ms (wall time of blocks of {sr.SPREAD_BLOCK} configurations on "
+              f"{where}, shared out: a throughput)")
+    else:
+        print(f"time per config mean {ms.mean():.3g} ms, median {np.median(ms):.3g} ms (one call each)")
     print(f"pairs per s     {run.configurations * len(scene.pairs) / run.seconds.sum():,.0f}")
     print(f"min distance    {run.min_distance[run.closest]:.6g} m, {a} - {b} "
           f"({run.min_status[run.closest]}), configuration {run.closest}")
@@ -171,6 +191,24 @@ def cmd_history(args) -> int:
     return 0
 
 
+def _workers(text: str) -> int:
+    """--workers: an integer >= 1 (spq.workers checks the range)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1; got {text!r}") from None
+
+
+def _spread_arguments(p, unit: str) -> None:
+    """--workers and --scheduler of a suite whose tasks may run on processes or a Dask cluster."""
+    p.add_argument("--workers", type=_workers, default=1,
+                   help=f"processes, one {unit} (with its own seed) at a time each; the results equal the serial "
+                        "run's (default 1: serial); with --scheduler local, the Dask LocalCluster's size")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the tasks on a Dask cluster: a scheduler address (tcp://HOST:8786) or 'local' "
+                        "for a LocalCluster of --workers processes (needs pip install \"dask[distributed]\")")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spq", description="Smooth Proximity Queries: measurements.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -193,6 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a plugin engine adapter to add (repeatable); see harness/engines/base.py")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="output folder (default: reports)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _spread_arguments(p, "object pair")
     p.set_defaults(func=_suite("crosscheck", engines=lambda a: _with_plugins(a.engines, a.engine)))
 
     p = sub.add_parser("bench-support", help="STP-BV support time against feature count (paper Fig. 6/7)")
@@ -208,11 +247,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_suite("support"))
 
     p = sub.add_parser("bench", help="throughput benchmarks")
-    p.add_argument("suite", choices=["pch", "stp", "table1", "robot", "robots"],
+    p.add_argument("suite", choices=["pch", "stp", "table1", "robot", "robots", "scaling"],
                    help="pch: PCH-PCH, every engine; stp: STP-PCH and STP-STP (spq) beside PCH-PCH; "
                         "table1: the paper's Table I, PCH/STP/CSE pairs with coal's PCH-PCH beside; "
                         "robot: all pairs of a robot per configuration, spq policies beside coal and fcl; "
-                        "robots: every robot of example-robot-data, one row each, beside pinocchio and coal")
+                        "robots: every robot of example-robot-data, one row each, beside pinocchio and coal; "
+                        "scaling: 1 against --workers (default 2) workers on batched queries, a scene sweep and "
+                        "the crosscheck, results compared (a few minutes)")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)
@@ -231,6 +272,10 @@ def build_parser() -> argparse.ArgumentParser:
                                                       "robots suite: configurations coal runs (default 5, quick 2)")
     p.add_argument("--robots", nargs="+", help="robots suite: robot names of example-robot-data (default: all)")
     p.add_argument("--quick", action="store_true", help="robots suite: a few small robots, few configurations")
+    p.add_argument("--workers", type=_workers, default=None,
+                   help="threads of spq's batched rows (pch, stp) and cold scene rows (robot), the results equal "
+                        "one thread's; coherent runs stay on one thread (default 1); scaling: the workers set "
+                        "against one (default 2)")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bench)
@@ -248,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quick", action="store_true", help="one pose per case and fewer sweeps (seconds)")
     p.add_argument("--quiet", action="store_true")
+    _spread_arguments(p, "case")
     p.set_defaults(func=_suite("stability"))
 
     p = sub.add_parser("depth", help="spq's penetration depth against an independent oracle (STP-BV and CSE pairs)")
@@ -304,6 +350,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene file (TOML; see scenes/ and harness/scene_file.py)")
     p.add_argument("--out", help="folder for the per-configuration and closest-posture CSVs (default: none written)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--workers", type=_workers, default=1,
+                   help="cold sweeps: threads sharing each block of configurations, or with --scheduler the Dask "
+                        "LocalCluster's size; results equal the serial run's (coherent sweeps stay serial)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="cold sweeps: blocks of configurations as tasks on a Dask cluster (tcp://HOST:8786, or "
+                        "'local'; needs pip install \"dask[distributed]\")")
     p.set_defaults(func=cmd_scene)
 
     p = sub.add_parser("view", help="interactive viewer in the browser (viser): a scene file's robot with joint sliders, "

@@ -108,6 +108,25 @@ def score(suite: PoseSuite, engine_name: str, result, a, b, gives_depth: bool = 
     })
 
 
+def pair_frames(k: int, na: str, nb: str, n: int, seed: int, buckets: dict, engines: dict, load_object,
+                bar=None) -> list[pd.DataFrame]:
+    """Pair k's (objects na, nb) bucket suite of n poses per bucket, drawn with seed ``seed + k``, and
+    every engine's scored rows on it, one frame per engine in the order of ``engines``."""
+    a, b = load_object(na), load_object(nb)
+    suite = bucket_suite(a, b, n, seed=seed + k, buckets=buckets, progress=bar if bar is not None else False)
+    suite.pair_name = f"{na}|{nb}"
+    frames = []
+    for name, engine in engines.items():
+        prepared = engine.prepare(a, b)
+        try:
+            result = prepared.query_many(suite.pose_a, suite.pose_b)
+        finally:
+            prepared.close()
+        frames.append(score(suite, name, result, a, b, getattr(engine, "gives_depth", False),
+                            getattr(prepared, "last_bounds", None)))
+    return frames
+
+
 def run(config: CrosscheckConfig, load_object, progress: bool = True, engines: dict | None = None) -> pd.DataFrame:
     """Run every engine on every pair's bucket suite; returns the tidy table. engines: {name: Engine}
     to run (the caller keeps and closes them); default: config.engines from the registry."""
@@ -124,24 +143,109 @@ def run(config: CrosscheckConfig, load_object, progress: bool = True, engines: d
         for k, ((na, nb), n) in enumerate(zip(pairs, counts)):
             if n == 0:
                 continue
-            a, b = load_object(na), load_object(nb)
             bar.set_postfix_str(f"{na} / {nb}")
-            suite = bucket_suite(a, b, n, seed=config.seed + k, buckets=buckets, progress=bar)
-            suite.pair_name = f"{na}|{nb}"
-            for name, engine in engines.items():
-                prepared = engine.prepare(a, b)
-                try:
-                    result = prepared.query_many(suite.pose_a, suite.pose_b)
-                finally:
-                    prepared.close()
-                frames.append(score(suite, name, result, a, b, getattr(engine, "gives_depth", False),
-                                    getattr(prepared, "last_bounds", None)))
+            frames += pair_frames(k, na, nb, n, config.seed, buckets, engines, load_object, bar)
         bar.close()
     finally:
         if owned:
             for engine in engines.values():
                 engine.close()
     return pd.concat(frames, ignore_index=True)
+
+
+# ---------------------------------------------------------------- the same run spread over processes
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of a spread crosscheck: pair k's bucket suite and engines ("pair"), or its agreement
+    with coal on random poses ("agreement"); n poses (per bucket for "pair"), seed as in the serial run."""
+
+    kind: str
+    k: int
+    na: str
+    nb: str
+    n: int
+    seed: int
+    buckets: tuple = ()  # (name, target) pairs
+    engines: tuple = ()  # registered engine names, in the serial run's order
+    plugins: tuple = ()  # ("name", "module:Class") of engines registered from --engine in the parent
+    load_object: object = None
+
+
+def _judged_engines(names: tuple, plugins: tuple) -> dict:
+    """The engines a worker process judges: registered as in the parent, native ones in children
+    (harness.engines.isolated); built once per process and kept for its later tasks."""
+    from harness.cluster import check_may_start_children, process_cache
+    from harness.engines import register_plugin
+    from harness.engines.isolated import isolated
+
+    def build() -> dict:
+        for name, spec in plugins:
+            register_plugin(spec, name)
+        check_may_start_children("the crosscheck")
+        plain = available_engines(list(names))
+        return {"plain": plain, "judged": isolated(plain)}
+
+    def close(held: dict) -> None:
+        for engine in {id(e): e for e in [*held["plain"].values(), *held["judged"].values()]}.values():
+            engine.close()
+
+    return process_cache(("crosscheck engines", names, plugins), build, close)["judged"]
+
+
+def run_task(task: Task):
+    """A task's result: the pair's engine frames, or its agreement row (see :class:`Task`)."""
+    load = task.load_object
+    if load is None:
+        from datasets import load_object as load
+    if task.kind == "pair":
+        engines = _judged_engines(task.engines, task.plugins)
+        return pair_frames(task.k, task.na, task.nb, task.n, task.seed, dict(task.buckets), engines, load)
+    return agreement_row(task.k, task.na, task.nb, task.n, task.seed, load)
+
+
+def tasks(config: CrosscheckConfig, engine_names: list[str], plugins: dict, agreement_poses: int,
+          load_object=None) -> tuple[list[Task], list[int]]:
+    """The crosscheck's tasks (every pair's suite, then every pair's agreement if agreement_poses > 0)
+    and the order to hand them out in: the costliest first (the reference's cost grows with the
+    product of the hulls' vertex counts), so that two workers end together."""
+    from datasets import load_object as default_load
+
+    load = load_object or default_load
+    pairs = object_pairs(config.objects)
+    buckets = tuple((k, BUCKETS[k]) for k in (config.buckets or BUCKETS))
+    common = dict(seed=config.seed, load_object=load_object)
+    out, cost = [], []
+    sizes = {name: len(load(name).vertices) for name in dict.fromkeys(config.objects)}
+    for k, ((na, nb), n) in enumerate(zip(pairs, _split(config.per_bucket, len(pairs)))):
+        if n:
+            out.append(Task("pair", k, na, nb, n, buckets=buckets, engines=tuple(engine_names),
+                            plugins=tuple((name, plugins[name]) for name in engine_names if name in plugins), **common))
+            cost.append(n * len(buckets) * (sizes[na] * sizes[nb] + 1e4))
+    if agreement_poses > 0:
+        for k, ((na, nb), n) in enumerate(zip(pairs, _split(agreement_poses, len(pairs)))):
+            out.append(Task("agreement", k, na, nb, n, **common))
+            cost.append(0.0)
+    order = sorted(range(len(out)), key=lambda i: -cost[i])
+    return out, order
+
+
+def run_spread(config: CrosscheckConfig, engine_names: list[str], plugins: dict, agreement_poses: int, workers: int,
+               scheduler: str | None, progress: bool = True,
+               load_object=None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+    """The crosscheck table (and the agreement table, or None) of :func:`run` and :func:`agreement`,
+    computed by tasks on ``workers`` processes or a Dask cluster (harness.cluster): equal to the
+    serial run's, each pair's poses drawn from its own seed as there."""
+    from harness.cluster import run_tasks
+
+    todo, order = tasks(config, engine_names, plugins, agreement_poses, load_object)
+    bar = tqdm(total=len(todo), desc="crosscheck tasks", unit="task", disable=not progress)
+    results = run_tasks(run_task, todo, workers, scheduler, order, done=lambda i, r: bar.update(1))
+    bar.close()
+    frames = [f for t, r in zip(todo, results) if t.kind == "pair" for f in r]
+    rows = [r for t, r in zip(todo, results) if t.kind == "agreement"]
+    return pd.concat(frames, ignore_index=True), (pd.DataFrame(rows) if agreement_poses > 0 else None)
 
 
 _AGGREGATES = dict(
@@ -221,6 +325,30 @@ def depth_worst_cases(table: pd.DataFrame, k: int = 5) -> pd.DataFrame:
 AGREEMENT_TOL = 1e-7  # m: spq and coal (gjk_tolerance 1e-8) must agree to this on separated poses
 
 
+def agreement_row(k: int, na: str, nb: str, n: int, seed: int, load_object) -> dict:
+    """Pair k's (na, nb) agreement row: spq batched against coal on n random poses drawn with seed + k."""
+    import spq
+    from harness.engines.coal_engine import CoalEngine
+    from harness.poses import random_poses
+
+    a, b = load_object(na), load_object(nb)
+    pa, pb = random_poses(n, seed + k, a.bounding_radius() + b.bounding_radius())
+    mine = spq.distances(a, b, pa, pb)
+    coal_pair = CoalEngine().prepare(a, b)
+    theirs = coal_pair.distance_loop(pa, pb)
+    sep = (mine.status == "separated") & (theirs > AGREEMENT_TOL)
+    over_spq = mine.status == "overlapping"
+    over_coal = theirs <= 0.0
+    band = (np.abs(theirs) <= AGREEMENT_TOL) | (mine.distance <= AGREEMENT_TOL)
+    diff = np.abs(mine.distance[sep] - theirs[sep])
+    return {"pair": f"{na}|{nb}", "poses": n, "results": 2 * n, "separated": int(sep.sum()),
+            "overlapping_spq": int(over_spq.sum()), "overlapping_coal": int(over_coal.sum()),
+            "status_disagreements": int(((over_spq != over_coal) & ~band).sum()),
+            "max_abs_difference": float(diff.max()) if len(diff) else 0.0,
+            "over_tolerance": int((diff > AGREEMENT_TOL).sum()),
+            "spq_failed": int((mine.status == "failed").sum())}
+
+
 def agreement(objects: list[str], poses_total: int, seed: int, load_object, progress: bool = True) -> pd.DataFrame:
     """spq (batched) against coal on many random poses: one row per object pair.
 
@@ -228,28 +356,9 @@ def agreement(objects: list[str], poses_total: int, seed: int, load_object, prog
     results; coal is independent of spq and accurate to its 1e-8 tolerance on these hulls.
     Translations are uniform in +-(r_A + r_B), so that both overlap and separation occur.
     """
-    import spq
-    from harness.engines.coal_engine import CoalEngine
-    from harness.poses import random_poses
-
     pairs = object_pairs(objects)
     rows = []
     for k, ((na, nb), n) in enumerate(tqdm(list(zip(pairs, _split(poses_total, len(pairs)))), desc="agreement",
                                            unit="pair", disable=not progress)):
-        a, b = load_object(na), load_object(nb)
-        pa, pb = random_poses(n, seed + k, a.bounding_radius() + b.bounding_radius())
-        mine = spq.distances(a, b, pa, pb)
-        coal_pair = CoalEngine().prepare(a, b)
-        theirs = coal_pair.distance_loop(pa, pb)
-        sep = (mine.status == "separated") & (theirs > AGREEMENT_TOL)
-        over_spq = mine.status == "overlapping"
-        over_coal = theirs <= 0.0
-        band = (np.abs(theirs) <= AGREEMENT_TOL) | (mine.distance <= AGREEMENT_TOL)
-        diff = np.abs(mine.distance[sep] - theirs[sep])
-        rows.append({"pair": f"{na}|{nb}", "poses": n, "results": 2 * n, "separated": int(sep.sum()),
-                     "overlapping_spq": int(over_spq.sum()), "overlapping_coal": int(over_coal.sum()),
-                     "status_disagreements": int(((over_spq != over_coal) & ~band).sum()),
-                     "max_abs_difference": float(diff.max()) if len(diff) else 0.0,
-                     "over_tolerance": int((diff > AGREEMENT_TOL).sum()),
-                     "spq_failed": int((mine.status == "failed").sum())})
+        rows.append(agreement_row(k, na, nb, n, seed, load_object))
     return pd.DataFrame(rows)

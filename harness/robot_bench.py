@@ -61,6 +61,7 @@ class RobotBenchConfig:
     r: float = 0.005
     R: float = 2.0
     skip: list[tuple[str, str]] = field(default_factory=list)
+    workers: int = 1  # > 1: the cold rows also on this many threads (spq.workers), beside one thread's
 
 
 def load_scene(config: RobotBenchConfig, policy: str) -> Scene:
@@ -72,14 +73,15 @@ def load_scene(config: RobotBenchConfig, policy: str) -> Scene:
 
 
 def best_run(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None, repeats: int,
-             block: int = TIMING_BLOCK):
+             block: int = TIMING_BLOCK, workers: int = 1):
     """(seconds, raw results) over qs: the sum, over blocks of ``block`` consecutive configurations,
     of each block's fastest of ``repeats`` runs. Every run starts from reset warm starts and goes
     through all of qs in order, one compiled call per block, so a block's warm starts are the ones
     a single call would have.
 
     The calls write into one result array, allocated and touched before the timing, as a control
-    loop would: a fresh array's page faults are the allocator's cost, not the queries'."""
+    loop would: a fresh array's page faults are the allocator's cost, not the queries'. workers: threads
+    per call (spq.workers; a coherent run stays on one)."""
     if repeats < 1 or block < 1:
         raise ValueError(f"repeats and block must be >= 1, got {repeats} and {block}")
     scene.reset()
@@ -91,7 +93,8 @@ def best_run(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None, 
         scene.reset()
         for i, s0 in enumerate(starts):
             t0 = time.perf_counter()
-            scene.distances_many(qs[s0:s0 + block], coherent=coherent, prune=prune, out=out[s0:s0 + block])
+            scene.distances_many(qs[s0:s0 + block], coherent=coherent, prune=prune, out=out[s0:s0 + block],
+                                 workers=workers)
             best[i] = min(best[i], time.perf_counter() - t0)
     return float(best.sum()), out
 
@@ -155,20 +158,26 @@ def summary_row(scene: Scene, policy: str, source: str, coherent: bool, prune, s
 
 def scene_table(config: RobotBenchConfig, randoms: np.ndarray, trajectory: np.ndarray, progress: bool):
     """spq rows for every policy x (random cold, trajectory coherent) x (all pairs, pruned); also
-    returns the scenes and the cold PCH and auto results on ``randoms`` for the engines and figures."""
+    returns the scenes and the cold PCH and auto results on ``randoms`` for the engines and figures.
+    config.workers > 1 adds the cold rows on that many threads (mode "cold N workers")."""
     from tqdm import tqdm
 
     rows, scenes, results = [], {}, {}
-    jobs = [(p, src, coh, pr) for p in config.policies for src, coh in (("random", False), ("trajectory", True))
+    jobs = [(p, src, coh, pr, 1) for p in config.policies for src, coh in (("random", False), ("trajectory", True))
             for pr in (None, config.prune)]
-    for policy, source, coherent, prune in tqdm(jobs, desc="bench robot", unit="run", disable=not progress):
+    if config.workers > 1:
+        jobs += [(p, "random", False, pr, config.workers) for p in config.policies for pr in (None, config.prune)]
+    for policy, source, coherent, prune, workers in tqdm(jobs, desc="bench robot", unit="run", disable=not progress):
         if policy not in scenes:
             scenes[policy] = load_scene(config, policy)
         scene = scenes[policy]
         qs = randoms if source == "random" else trajectory
-        seconds, out = best_run(scene, qs, coherent, prune, config.repeats)
-        rows.append(summary_row(scene, policy, source, coherent, prune, seconds, out))
-        if source == "random" and prune is None:
+        seconds, out = best_run(scene, qs, coherent, prune, config.repeats, workers=workers)
+        row = summary_row(scene, policy, source, coherent, prune, seconds, out)
+        if workers > 1:
+            row["mode"] = f"cold {workers} workers"
+        rows.append(row)
+        if source == "random" and prune is None and workers == 1:
             results[policy] = out
     return pd.DataFrame(rows), scenes, results
 

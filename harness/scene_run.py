@@ -74,16 +74,78 @@ def run_scene(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None 
             start = time.perf_counter()
             out = scene.distances_many(qs[k:k + 1], coherent, prune)
             seconds[k] = time.perf_counter() - start
-            result = SceneDistances.from_out(scene.pairs, out[0])
-            names, number = np.unique(result.status, return_counts=True)
-            for name, c in zip(names, number):
-                counts[str(name)] += int(c)
-            overlapping[k] = int(np.count_nonzero(result.status == "overlapping"))
-            i = result.min_index
-            min_pair[k], min_distance[k], min_status[k] = i, result.distance[i], result.status[i]
+            result = _summarize(scene, out[0], k, counts, min_distance, min_pair, min_status, overlapping)
             if closest_result is None or min_distance[k] < min_distance[closest]:
                 closest, closest_result = k, result
             bar.update(1)
+    return SceneRun(min_distance, min_pair, min_status.astype(str), overlapping, seconds, counts, closest,
+                    closest_result)
+
+
+def _summarize(scene: Scene, out: np.ndarray, k: int, counts: dict, min_distance, min_pair, min_status,
+               overlapping) -> SceneDistances:
+    """Configuration k's results (out: npairs x OUT_SIZE) into the run's arrays and status counts."""
+    result = SceneDistances.from_out(scene.pairs, out)
+    names, number = np.unique(result.status, return_counts=True)
+    for name, c in zip(names, number):
+        counts[str(name)] += int(c)
+    overlapping[k] = int(np.count_nonzero(result.status == "overlapping"))
+    i = result.min_index
+    min_pair[k], min_distance[k], min_status[k] = i, result.distance[i], result.status[i]
+    return result
+
+
+SPREAD_BLOCK = 256  # configurations per call (per task on a cluster) of a spread sweep
+
+
+def sweep_block(task: tuple) -> tuple:
+    """A cold block of a spread sweep: (scene, qs, prune, threads) -> (seconds, raw results (n, npairs,
+    OUT_SIZE)) of one Scene.distances_many call on ``threads`` threads."""
+    scene, qs, prune, threads = task
+    start = time.perf_counter()
+    out = scene.distances_many(qs, coherent=False, prune=prune, workers=threads)
+    return time.perf_counter() - start, out
+
+
+def run_scene_spread(scene: Scene, qs: np.ndarray, prune: float | None = None, workers: int = 1,
+                     scheduler: str | None = None, progress: bool = False) -> SceneRun:
+    """:func:`run_scene` of a cold sweep, its configurations in blocks of SPREAD_BLOCK: with no scheduler,
+    one call per block on ``workers`` threads here; with one, a task per block (the scene pickled into
+    it) on a Dask cluster (harness.cluster). Every configuration's results equal the serial run's bit
+    for bit (a cold query depends on its own configuration alone); ``seconds`` holds each block's wall
+    time shared out over its configurations, a throughput, not the time of a call per configuration."""
+    from tqdm import tqdm
+
+    from harness.cluster import check_scheduler, run_tasks
+    from spq.workers import check_workers
+
+    workers, scheduler = check_workers(workers), check_scheduler(scheduler)
+    qs = scene.model.check_configurations(qs)
+    if len(qs) == 0:
+        raise ValueError("no configurations to run")
+    if len(scene.pairs) == 0:
+        raise ValueError("the scene has no pairs to query (every pair is skipped)")
+    scene.distances_many(qs[:1], False, prune, workers=workers)  # loads the compiled code
+    scene.reset()
+    n = len(qs)
+    starts = list(range(0, n, SPREAD_BLOCK))
+    threads = workers if scheduler is None else 1
+    tasks = [(scene, qs[s0:s0 + SPREAD_BLOCK], prune, threads) for s0 in starts]
+    with tqdm(total=n, desc="scene", unit="config", delay=PROGRESS_DELAY, disable=not progress) as bar:
+        blocks = run_tasks(sweep_block, tasks, 1 if scheduler is None else workers, scheduler,
+                           done=lambda i, r: bar.update(len(r[1])))
+    min_distance, seconds = np.empty(n), np.empty(n)
+    min_pair, overlapping = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+    min_status = np.empty(n, dtype=object)
+    counts = dict.fromkeys(STATUSES, 0)
+    closest, closest_result = 0, None
+    for s0, (elapsed, out) in zip(starts, blocks):
+        seconds[s0:s0 + len(out)] = elapsed / len(out)
+        for j in range(len(out)):
+            k = s0 + j
+            result = _summarize(scene, out[j], k, counts, min_distance, min_pair, min_status, overlapping)
+            if closest_result is None or min_distance[k] < min_distance[closest]:
+                closest, closest_result = k, result
     return SceneRun(min_distance, min_pair, min_status.astype(str), overlapping, seconds, counts, closest,
                     closest_result)
 

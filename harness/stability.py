@@ -316,61 +316,68 @@ def depth_verdict(engine: str, gives_depth: bool, status: str, raw: float, ref_s
     return "ok", allowed
 
 
+def case_rows(case: Case, engines: dict) -> list[dict]:
+    """One row per pose and engine of a case: the reference, the engine's answer and its verdicts."""
+    rows = []
+    refs = []
+    for pa, pb in case.poses:
+        try:
+            refs.append(reference_distance(case.a, case.b, pa, pb))
+        except Exception as exc:  # a reference failure skips the pose, never the run
+            refs.append(exc)
+    for name, engine in engines.items():
+        try:
+            prepared = engine.prepare(case.a, case.b)
+        except Exception as exc:
+            prepared = None
+            prep_error = f"{type(exc).__name__}: {exc}"
+        try:
+            for k, ((pa, pb), ref) in enumerate(zip(case.poses, refs)):
+                row = dict(family=case.family, case=case.case, param=case.param, pose=k, engine=name)
+                if isinstance(ref, Exception):
+                    rows.append({**row, "verdict": "no_reference", "message": str(ref)})
+                    continue
+                extent = float(np.abs(case.a.vertices).max() + np.abs(case.b.vertices).max()
+                               + np.abs(pa[:3, 3]).max() + np.abs(pb[:3, 3]).max())
+                row.update(ref_distance=ref.distance, ref_signed=ref.signed_distance, ref_status=ref.status)
+                if prepared is None:
+                    res_status, dist, raw, msg, dt = "failed", float("nan"), float("nan"), prep_error, float("nan")
+                else:
+                    try:
+                        t0 = time.perf_counter()
+                        r = prepared.query(pa, pb)
+                        dt = time.perf_counter() - t0
+                        res_status, dist, raw, msg = r.status, r.distance, r.raw_distance, r.message
+                    except Exception as exc:
+                        res_status, dist, raw, msg, dt = ("failed", float("nan"), float("nan"),
+                                                          f"{type(exc).__name__}: {exc}", float("nan"))
+                v, allowed = verdict(name, res_status, dist, ref.distance, ref.signed_distance, extent)
+                err = dist - ref.distance
+                dv, d_allowed, d_err = "", float("nan"), float("nan")
+                if ref.signed_distance <= AMBIGUOUS_BAND:
+                    dv, d_allowed = depth_verdict(name, getattr(engines[name], "gives_depth", False),
+                                                  res_status, raw, ref.signed_distance, extent)
+                    if dv != "no depth":
+                        d_err = raw - ref.signed_distance
+                rows.append({**row, "distance": dist, "raw_distance": raw, "status": res_status,
+                             "error": err, "abs_error": abs(err),
+                             "rel_error": abs(err) / ref.distance if ref.distance > AMBIGUOUS_BAND else float("nan"),
+                             "ref_depth": ref.depth, "allowed_error": allowed, "time_us": dt * 1e6,
+                             "verdict": v, "depth_error": d_err, "depth_abs_error": abs(d_err),
+                             "allowed_depth_error": d_allowed, "depth_verdict": dv, "message": msg})
+        finally:
+            if prepared is not None:
+                try:
+                    prepared.close()
+                except Exception:
+                    pass
+    return rows
+
+
 def run_cases(cases: list[Case], engines: dict, progress: bool = False) -> pd.DataFrame:
     rows = []
     for ci, case in enumerate(cases):
-        refs = []
-        for pa, pb in case.poses:
-            try:
-                refs.append(reference_distance(case.a, case.b, pa, pb))
-            except Exception as exc:  # a reference failure skips the pose, never the run
-                refs.append(exc)
-        for name, engine in engines.items():
-            try:
-                prepared = engine.prepare(case.a, case.b)
-            except Exception as exc:
-                prepared = None
-                prep_error = f"{type(exc).__name__}: {exc}"
-            try:
-                for k, ((pa, pb), ref) in enumerate(zip(case.poses, refs)):
-                    row = dict(family=case.family, case=case.case, param=case.param, pose=k, engine=name)
-                    if isinstance(ref, Exception):
-                        rows.append({**row, "verdict": "no_reference", "message": str(ref)})
-                        continue
-                    extent = float(np.abs(case.a.vertices).max() + np.abs(case.b.vertices).max()
-                                   + np.abs(pa[:3, 3]).max() + np.abs(pb[:3, 3]).max())
-                    row.update(ref_distance=ref.distance, ref_signed=ref.signed_distance, ref_status=ref.status)
-                    if prepared is None:
-                        res_status, dist, raw, msg, dt = "failed", float("nan"), float("nan"), prep_error, float("nan")
-                    else:
-                        try:
-                            t0 = time.perf_counter()
-                            r = prepared.query(pa, pb)
-                            dt = time.perf_counter() - t0
-                            res_status, dist, raw, msg = r.status, r.distance, r.raw_distance, r.message
-                        except Exception as exc:
-                            res_status, dist, raw, msg, dt = ("failed", float("nan"), float("nan"),
-                                                              f"{type(exc).__name__}: {exc}", float("nan"))
-                    v, allowed = verdict(name, res_status, dist, ref.distance, ref.signed_distance, extent)
-                    err = dist - ref.distance
-                    dv, d_allowed, d_err = "", float("nan"), float("nan")
-                    if ref.signed_distance <= AMBIGUOUS_BAND:
-                        dv, d_allowed = depth_verdict(name, getattr(engines[name], "gives_depth", False),
-                                                      res_status, raw, ref.signed_distance, extent)
-                        if dv != "no depth":
-                            d_err = raw - ref.signed_distance
-                    rows.append({**row, "distance": dist, "raw_distance": raw, "status": res_status,
-                                 "error": err, "abs_error": abs(err),
-                                 "rel_error": abs(err) / ref.distance if ref.distance > AMBIGUOUS_BAND else float("nan"),
-                                 "ref_depth": ref.depth, "allowed_error": allowed, "time_us": dt * 1e6,
-                                 "verdict": v, "depth_error": d_err, "depth_abs_error": abs(d_err),
-                                 "allowed_depth_error": d_allowed, "depth_verdict": dv, "message": msg})
-            finally:
-                if prepared is not None:
-                    try:
-                        prepared.close()
-                    except Exception:
-                        pass
+        rows += case_rows(case, engines)
         if progress:
             print(f"  [{ci + 1}/{len(cases)}] {case.family} {case.case} {case.param:g}", flush=True)
     return pd.DataFrame(rows)
@@ -404,12 +411,21 @@ def coal_sweep_cases(config: StabilityConfig, load_object) -> list[Case]:
                  _random_placements(la, lb, gap, per, rng)) for gap in (1e-6, 1e-4, 1e-2)]
 
 
-def run(config: StabilityConfig, load_object, progress: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
+def run(config: StabilityConfig, load_object, progress: bool = False, workers: int = 1,
+        scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(main table over all families and ENGINES, coal duality-gap sweep table). The native engines
-    answer from child processes (harness.engines.isolated): a crash fails its queries, not the run."""
-    from harness.engines import ENGINE_FACTORIES, available_engines
-    from harness.engines.isolated import isolated
+    answer from child processes (harness.engines.isolated): a crash fails its queries, not the run.
 
+    workers > 1 or a scheduler: every case is a task (its poses drawn here, as in the serial run)
+    run on that many processes or on a Dask cluster (harness.cluster); the tables are the serial
+    run's but for the time_us column."""
+    from harness.cluster import check_scheduler
+    from harness.engines import ENGINE_FACTORIES, PLUGIN_SPECS, available_engines
+    from harness.engines.isolated import isolated
+    from spq.workers import check_workers
+
+    workers, scheduler = check_workers(workers), check_scheduler(scheduler)
+    spread = workers > 1 or scheduler is not None
     names = config.engines or [e for e in ENGINES if e in ENGINE_FACTORIES]
     engines = {}
     for name in names:
@@ -417,23 +433,89 @@ def run(config: StabilityConfig, load_object, progress: bool = False) -> tuple[p
             engines.update(available_engines([name]))
         except Exception as exc:  # a missing package drops its engine only
             print(f"engine {name} skipped: {exc}")
-    judged = isolated(engines)
-    try:
-        cases = (build_cases(config, load_object) + penetration_cases(config, load_object)
-                 + (fcl_gap_cases(config) if config.fcl_gap else []))
-        table = run_cases(cases, judged, progress)
-    finally:
-        for engine in {id(e): e for e in [*engines.values(), *judged.values()]}.values():
+    cases = (build_cases(config, load_object) + penetration_cases(config, load_object)
+             + (fcl_gap_cases(config) if config.fcl_gap else []))
+    if spread:
+        for engine in engines.values():
             engine.close()
+        plugins = tuple((n, PLUGIN_SPECS[n]) for n in engines if n in PLUGIN_SPECS)
+        table = _run_spread(cases, CaseTask(None, tuple(engines), plugins), workers, scheduler, progress)
+    else:
+        judged = isolated(engines)
+        try:
+            table = run_cases(cases, judged, progress)
+        finally:
+            for engine in {id(e): e for e in [*engines.values(), *judged.values()]}.values():
+                engine.close()
     sweep = pd.DataFrame()
     if config.coal_sweep and ("coal" in engines or config.engines is None):
+        tolerances = DUALITY_TOLERANCES_QUICK if config.quick else DUALITY_TOLERANCES
         try:
-            dg = coal_dualitygap_engines(DUALITY_TOLERANCES_QUICK if config.quick else DUALITY_TOLERANCES)
-            dg = {"coal": available_engines(["coal"])["coal"], **dg}
-            sweep = run_cases(coal_sweep_cases(config, load_object), dg, progress)
+            dg = {"coal": available_engines(["coal"])["coal"], **coal_dualitygap_engines(tolerances)}
+            if spread:
+                sweep = _run_spread(coal_sweep_cases(config, load_object), CaseTask(None, sweep=tolerances), workers,
+                                    scheduler, progress)
+            else:
+                sweep = run_cases(coal_sweep_cases(config, load_object), dg, progress)
         except ImportError as exc:
             print(f"coal sweep skipped: {exc}")
     return table, sweep
+
+
+@dataclass(frozen=True)
+class CaseTask:
+    """One stability case to judge in a worker: by the registered engines named (plugins re-registered
+    there, native engines in child processes), or with sweep set, by coal and its DualityGap
+    engines at those tolerances."""
+
+    case: Case | None
+    engines: tuple = ()
+    plugins: tuple = ()  # ("name", "module:Class") of engines registered from --engine in the parent
+    sweep: tuple | None = None
+
+
+def _task_engines(task: CaseTask) -> dict:
+    """The engines of a task, built once per worker process (see harness.cluster.process_cache)."""
+    from harness.cluster import check_may_start_children, process_cache
+    from harness.engines import available_engines, register_plugin
+    from harness.engines.isolated import isolated
+
+    if task.sweep is not None:
+        return process_cache(("stability sweep", task.sweep), lambda: {
+            "coal": available_engines(["coal"])["coal"], **coal_dualitygap_engines(task.sweep)})
+
+    def build() -> dict:
+        for name, spec in task.plugins:
+            register_plugin(spec, name)
+        check_may_start_children("the stability suite")
+        plain = available_engines(list(task.engines))
+        return {"plain": plain, "judged": isolated(plain)}
+
+    def close(held: dict) -> None:
+        for engine in {id(e): e for e in [*held["plain"].values(), *held["judged"].values()]}.values():
+            engine.close()
+
+    return process_cache(("stability engines", task.engines, task.plugins), build, close)["judged"]
+
+
+def run_case_task(task: CaseTask) -> list[dict]:
+    """A task's rows (see :func:`case_rows`)."""
+    return case_rows(task.case, _task_engines(task))
+
+
+def _run_spread(cases: list[Case], template: CaseTask, workers: int, scheduler: str | None,
+                progress: bool) -> pd.DataFrame:
+    """run_cases' table, each case a task (see :class:`CaseTask`) on workers or a Dask cluster."""
+    from dataclasses import replace
+
+    from harness.cluster import run_tasks
+
+    def done(i: int, _rows) -> None:
+        if progress:
+            print(f"  [{i + 1}/{len(cases)}] {cases[i].family} {cases[i].case} {cases[i].param:g}", flush=True)
+
+    results = run_tasks(run_case_task, [replace(template, case=c) for c in cases], workers, scheduler, done=done)
+    return pd.DataFrame([row for rows in results for row in rows])
 
 
 def summarize(table: pd.DataFrame, by=("engine",)) -> pd.DataFrame:

@@ -34,6 +34,7 @@ from spq.kernels.gjk import (
 )
 from spq.shapes.base import Shape
 from spq.validation import as_poses
+from spq.workers import MIN_PAIR_QUERIES, check_workers, chunk_bounds, map_chunks
 
 DEFAULT_TOL_ABS = 1e-10  # m: stop when upper - lower bound <= TOL_ABS + TOL_REL * distance
 DEFAULT_TOL_REL = 1e-10  # m/m
@@ -198,18 +199,38 @@ class Pair:
             _raise_pose_error(code)
         return DistanceResult(out)
 
-    def distances(self, poses_a, poses_b, coherent: bool = True) -> BatchDistances:
-        """Batched queries (see :func:`distances`), continuing this pair's warm start."""
+    def distances(self, poses_a, poses_b, coherent: bool = True, workers: int = 1) -> BatchDistances:
+        """Batched queries (see :func:`distances`), continuing this pair's warm start.
+
+        workers: threads for a cold batch (coherent=False), split into contiguous chunks; results
+        equal the one-thread call's bit for bit (see spq.workers). A coherent batch runs on one thread."""
+        workers = check_workers(workers)
         pa = _as_pose_batch(poses_a, "poses_a")
         pb = _as_pose_batch(poses_b, "poses_b")
         n = max(len(pa), len(pb))
         if len(pa) not in (1, n) or len(pb) not in (1, n):
             raise ValueError(f"poses_a and poses_b must have the same length N (or 1); got {len(pa)} and {len(pb)}")
         out = np.empty((n, OUT_SIZE))
-        code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats, pa, pb,
-                              bool(coherent), out, *kb.query_scratch())
-        if code >= 0:
-            _raise_pose_error(code % 100, code // 100)
+        bounds = [(0, n)] if coherent else chunk_bounds(n, workers, MIN_PAIR_QUERIES)
+        if len(bounds) == 1:
+            code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats, pa, pb,
+                                  bool(coherent), out, *kb.query_scratch())
+            if code >= 0:
+                _raise_pose_error(code % 100, code // 100)
+            return BatchDistances(out)
+
+        def chunk(start: int, stop: int):
+            ints, floats = self._ints.copy(), self._floats.copy()
+            code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, ints, floats,
+                                  pa[start:stop] if len(pa) > 1 else pa, pb[start:stop] if len(pb) > 1 else pb,
+                                  False, out[start:stop], *kb.query_scratch())
+            return code, ints, floats
+
+        results = map_chunks(chunk, bounds, workers)
+        for (start, _), (code, _, _) in zip(bounds, results):
+            if code >= 0:  # the first chunk with a bad pose holds the first bad pose
+                _raise_pose_error(code % 100, start + code // 100)
+        _, self._ints[:], self._floats[:] = results[-1]  # the state the last query left, as in one call
         return BatchDistances(out)
 
 
@@ -227,11 +248,15 @@ def distance(A: Shape, pose_a, B: Shape, pose_b, tol: float = DEFAULT_TOL_ABS, r
 
 
 def distances(A: Shape, B: Shape, poses_a, poses_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
-              max_iter: int = DEFAULT_MAX_ITER, coherent: bool = False, signed: bool = False) -> BatchDistances:
+              max_iter: int = DEFAULT_MAX_ITER, coherent: bool = False, signed: bool = False,
+              workers: int = 1) -> BatchDistances:
     """Distances for N pose pairs in one compiled loop.
 
     poses_a, poses_b: (N, 4, 4) world poses (either may be a single 4x4, broadcast). coherent=True
     warm-starts each query from the previous one (for trajectories); False starts each cold.
-    signed: as in :func:`distance`. Returns a :class:`BatchDistances` of arrays.
+    signed: as in :func:`distance`. workers: threads (1 to spq.workers.MAX_WORKERS) that share a cold
+    batch in contiguous chunks, the compiled loop running without the GIL; the results equal one
+    thread's bit for bit. A coherent batch depends on its order and runs on one thread whatever
+    workers says. Returns a :class:`BatchDistances` of arrays.
     """
-    return Pair(A, B, tol, rel_tol, max_iter, signed).distances(poses_a, poses_b, coherent=coherent)
+    return Pair(A, B, tol, rel_tol, max_iter, signed).distances(poses_a, poses_b, coherent=coherent, workers=workers)

@@ -52,6 +52,7 @@ from spq.shapes.primitives import Box, Capsule, Sphere
 from spq.shapes.stpbv import STPBV
 from spq.shapes.superellipsoid import Superellipsoid
 from spq.validation import as_pose, as_positive
+from spq.workers import MIN_SCENE_CONFIGURATIONS, check_workers, chunk_bounds, map_chunks
 
 BODY_POLICIES = ("pch", "stp", "cse", "auto")
 SCENE_POLICIES = BODY_POLICIES + ("stp-both",)
@@ -451,23 +452,43 @@ class Scene:
         return self.model.random_configuration(rng)
 
     def _run(self, qs: np.ndarray, coherent: bool, prune: float, out: np.ndarray | None = None,
-             signed: bool = False) -> np.ndarray:
+             signed: bool = False, workers: int = 1) -> np.ndarray:
         shape = (len(qs), len(self.pairs), OUT_SIZE)
+        workers = check_workers(workers)
         self._pair_ints[:, I_SIGNED] = check_signed(signed)
         if out is None:
             out = np.empty(shape)
         elif (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float64
               or not out.flags.c_contiguous or not out.flags.writeable):
             raise ValueError(f"out must be a writeable C-contiguous float64 array of shape {shape}")
+        bounds = [(0, len(qs))] if coherent else chunk_bounds(len(qs), workers, MIN_SCENE_CONFIGURATIONS)
+        if len(bounds) == 1:
+            self._sweep(qs, coherent, prune, self._pair_ints, self._pair_floats, out)
+            return out
+
+        def chunk(start: int, stop: int):
+            ints, floats = self._pair_ints.copy(), self._pair_floats.copy()
+            self._sweep(qs[start:stop], False, prune, ints, floats, out[start:stop])
+            return ints, floats
+
+        states = map_chunks(chunk, bounds, workers)
+        # the state one call leaves: each pair's from the last chunk that queried it (a pruned pair keeps its own)
+        for (start, stop), (ints, floats) in zip(bounds, states):
+            queried = (out[start:stop, :, OUT_STATUS] != kscene.PRUNED).any(axis=0) if prune > 0.0 else slice(None)
+            self._pair_ints[queried], self._pair_floats[queried] = ints[queried], floats[queried]
+        return out
+
+    def _sweep(self, qs: np.ndarray, coherent: bool, prune: float, pair_ints: np.ndarray, pair_floats: np.ndarray,
+               out: np.ndarray) -> None:
+        """One compiled call over qs with the given per-pair warm-start state, into out (own scratch)."""
         m = self.model
         kscene.scene_distances(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
                                m.q_offset, self.base, qs,
                                self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin,
                                self._slot_frange, self._slot_irange, self._fpool, self._ipool, self._slot_centre,
-                               self._slot_radius, self._pair_slots, self._pair_ints, self._pair_floats,
+                               self._slot_radius, self._pair_slots, pair_ints, pair_floats,
                                bool(coherent), float(prune), np.empty((m.nlinks, 4, 4)),
                                np.empty((len(self._slot_link), 4, 4)), *query_scratch(), out)
-        return out
 
     def _check_prune(self, prune) -> float:
         prune = 0.0 if prune is None else float(prune)
@@ -488,17 +509,23 @@ class Scene:
         return SceneDistances.from_out(self.pairs, out[0])
 
     def distances_many(self, qs, coherent: bool = False, prune: float | None = None,
-                       out: np.ndarray | None = None, signed: bool = False) -> np.ndarray:
+                       out: np.ndarray | None = None, signed: bool = False, workers: int = 1) -> np.ndarray:
         """Raw results (N, npairs, OUT_SIZE; columns as spq.kernels.gjk.OUT_*) for N configurations
         (N, ndof) in one compiled call; coherent carries warm starts from one to the next; signed as
         in :meth:`distances`.
+
+        workers: threads (1 to spq.workers.MAX_WORKERS) that share a cold sweep (coherent=False) in
+        contiguous chunks of configurations, each with its own copy of the pairs' warm-start state;
+        the results equal one thread's bit for bit, and the scene's state afterwards is the one a
+        single call leaves. A coherent sweep depends on the order of the configurations (each pair
+        starts from its last simplex) and runs on one thread whatever workers says.
 
         out: an array of that shape (float64, C-contiguous) to write the results into and return,
         so that a loop calling this again allocates nothing (a fresh array's first touch costs page
         faults, a few percent of a call over many configurations)."""
         qs = np.atleast_2d(np.asarray(qs, dtype=np.float64))
         checked = self.model.check_configurations(qs)
-        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune), out, signed)
+        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune), out, signed, workers)
 
     def link_poses(self, q) -> np.ndarray:
         """(nlinks, 4, 4) world poses of the links at q."""

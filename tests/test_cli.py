@@ -51,3 +51,17 @@ def test_bench_support_writes_the_scaling_chart(tmp_path):
 def test_unknown_object_is_a_clear_error(tmp_path, capsys):
     assert main(["bench", "pch", "--object", "no_such_link", "--poses", "10", "--quiet", "--out", str(tmp_path)]) == 2
     assert "neither a known object nor an existing file" in capsys.readouterr().err
+
+
+def test_bench_pch_with_workers_adds_the_threaded_batched_rows(tmp_path):
+    assert main(["bench", "pch", "--poses", "300", "--repeats", "1", "--quiet", "--engines", "spq", "--workers", "2",
+                 "--out", str(tmp_path)]) == 0
+    table = pd.read_csv(tmp_path / "bench_pch.csv")
+    modes = set(table["mode"])
+    assert {"batched", "batched 2 workers", "batched signed 2 workers"} <= modes
+
+
+def test_bad_workers_are_a_clear_error(tmp_path, capsys):
+    assert main(["crosscheck", "--workers", "0", "--per-bucket", "1", "--agreement-poses", "0", "--engines", "spq",
+                 "--quiet", "--out", str(tmp_path)]) == 2
+    assert "workers must be an integer from 1 to" in capsys.readouterr().err

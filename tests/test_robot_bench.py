@@ -84,5 +84,7 @@ def test_blockwise_timing_gives_the_results_of_one_call(coherent):
     seconds, out = rb.best_run(scene, qs, coherent, None, repeats=2, block=5)
     assert seconds > 0.0
     np.testing.assert_array_equal(out, whole)
+    _, threaded = rb.best_run(scene, qs, coherent, None, repeats=1, block=20, workers=2)  # bench robot --workers 2
+    assert threaded.tobytes() == whole.tobytes()
     with pytest.raises(ValueError, match="repeats and block"):
         rb.best_run(scene, qs, coherent, None, repeats=0)

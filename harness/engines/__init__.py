@@ -82,6 +82,7 @@ ENGINE_FACTORIES: dict[str, EngineFactory] = {
 }
 
 
+PLUGIN_SPECS: dict[str, str] = {}  # name -> "module:Class" of the plugins registered here (for worker processes)
 ENTRY_POINT_GROUP = "spq.engines"
 _entry_points_loaded = False
 
@@ -128,6 +129,7 @@ def register_plugin(spec: str, name: str | None = None) -> str:
     if not isinstance(name, str) or not name:
         raise ValueError(f"engine plugin {spec!r}: give it a name ('name={spec}')")
     ENGINE_FACTORIES[name] = _named(factory, name)
+    PLUGIN_SPECS[name] = spec
     return name
 
 
@@ -150,6 +152,7 @@ def register_engine(name: str, factory: EngineFactory, *, replace: bool = False)
     if not replace and name in ENGINE_FACTORIES:
         raise ValueError(f"engine {name!r} is already registered (pass replace=True to override)")
     ENGINE_FACTORIES[name] = factory
+    PLUGIN_SPECS.pop(name, None)
 
 
 def engine_names() -> list[str]:
@@ -193,6 +196,7 @@ __all__ = [
     "ENGINE_FACTORIES",
     "register_engine",
     "register_plugin",
+    "PLUGIN_SPECS",
     "load_plugin",
     "ENTRY_POINT_GROUP",
     "engine_names",

@@ -23,6 +23,7 @@ class Config:
     r: float = 0.005  # m: STP-BV small radius (kind "stp")
     R: float = 2.0  # m: STP-BV big radius (kind "stp")
     progress: bool = False
+    workers: int = 1  # > 1: spq's batched rows also on this many threads (rows "batched N workers")
 
 
 def run(config: Config) -> Output:
@@ -31,22 +32,29 @@ def run(config: Config) -> Output:
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
+    from spq.workers import check_workers
+
+    check_workers(config.workers)
     if config.kind not in PAIRS:
         raise ValueError(f"kind must be one of {sorted(PAIRS)}, not {config.kind!r}")
     cfg = bench.BenchConfig(object_name=config.object, poses=config.poses, seed=config.seed,
                             translation_range=config.range, repeats=config.repeats, engines=config.engines,
-                            r=config.r, R=config.R, pairs=PAIRS[config.kind])
+                            r=config.r, R=config.R, pairs=PAIRS[config.kind], workers=config.workers)
     table = bench.throughput(cfg, load_object, progress=config.progress)
     meta = run_metadata(command=f"spq bench {config.kind}", seed=config.seed, poses=config.poses,
                         translation_range_m=config.range, repeats=config.repeats, spq_tol_abs=DEFAULT_TOL_ABS,
                         spq_tol_rel=DEFAULT_TOL_REL, coal_gjk_tolerance=1e-8,
-                        **({"stp_r": config.r, "stp_R": config.R} if config.kind == "stp" else {}))
+                        **({"stp_r": config.r, "stp_R": config.R} if config.kind == "stp" else {}),
+                        **({"workers": config.workers} if config.workers > 1 else {}))
     notes = (f"Two copies of {config.object}, {config.poses} pose pairs with uniformly random rotations and "
              f"translations uniform in ±{config.range} m, seed {config.seed}. Best of {config.repeats} repeats; every "
              "engine in the same run. per-call: one Python call per query; batched: one compiled call for all "
              "poses; signed: spq with signed=True (penetration depth on overlaps; coal always runs with signed "
              "distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side. "
              + MUJOCO_PIPELINE)
+    if config.workers > 1:
+        notes += (f" batched {config.workers} workers: the batched call split over {config.workers} threads "
+                  "(spq.workers), its results equal one thread's bit for bit; every other row runs on one thread.")
     if config.kind == "stp":
         notes += f" STP-BV built from the link's hull vertices with r = {config.r} m, R = {config.R} m."
     out = Output(meta=meta, tables=[Table(f"bench_{config.kind}", f"Throughput ({config.kind})", table, notes)])

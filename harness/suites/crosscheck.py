@@ -34,6 +34,8 @@ class Config:
     buckets: list[str] | None = None
     agreement_poses: int = 500_000  # random poses on which spq is compared with coal (0: none)
     progress: bool = False
+    workers: int = 1  # processes (> 1: a local pool, or the Dask LocalCluster's size with scheduler "local")
+    scheduler: str | None = None  # None, "local" or a Dask scheduler address (harness.cluster)
 
 
 def run(config: Config) -> Output:
@@ -43,24 +45,40 @@ def run(config: Config) -> Output:
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
+    from harness.cluster import check_scheduler, describe
+    from spq.workers import check_workers
+
     start = time.perf_counter()
+    workers, scheduler = check_workers(config.workers), check_scheduler(config.scheduler)
     objects = config.objects or DEFAULT_OBJECTS
     cfg = cc.CrosscheckConfig(objects=objects, per_bucket=config.per_bucket, seed=config.seed,
                               engines=config.engines, buckets=config.buckets)
+    spread = workers > 1 or scheduler is not None
     plain = available_engines(cfg.engines)
-    engines = isolated(plain)  # a native engine's crash fails its queries, not the run
-    try:
-        table = cc.run(cfg, load_object, progress=config.progress, engines=engines)
-    finally:
-        for engine in {id(e): e for e in [*plain.values(), *engines.values()]}.values():
+    agree = None
+    if spread:  # every pair's suite (and agreement) a task, engines built in the workers
+        from harness.engines import PLUGIN_SPECS
+
+        names = list(plain)
+        for engine in plain.values():
             engine.close()
+        table, agree = cc.run_spread(cfg, names, PLUGIN_SPECS, config.agreement_poses, workers, scheduler,
+                                     progress=config.progress)
+    else:
+        engines = isolated(plain)  # a native engine's crash fails its queries, not the run
+        try:
+            table = cc.run(cfg, load_object, progress=config.progress, engines=engines)
+        finally:
+            for engine in {id(e): e for e in [*plain.values(), *engines.values()]}.values():
+                engine.close()
     summary = cc.summarize(table)
     totals = cc.summarize(table, by=("engine",))
     worst = cc.worst_cases(table)
     meta = run_metadata(command="spq crosscheck", seed=config.seed, per_bucket=config.per_bucket,
                         objects=objects, spq_tol_abs=DEFAULT_TOL_ABS, spq_tol_rel=DEFAULT_TOL_REL,
                         coal_gjk_tolerance=1e-8, ambiguous_band_m=cc.AMBIGUOUS_BAND,
-                        queries=len(table), seconds=round(time.perf_counter() - start, 1))
+                        queries=len(table), seconds=round(time.perf_counter() - start, 1),
+                        **({"runs_on": describe(workers, scheduler)} if spread else {}))
     depth = cc.depth_summary(table)
     out = Output(raw={"crosscheck.csv.gz": table}, meta=meta, tables=[
         Table("crosscheck_summary", "Cross-check per engine and bucket", summary, NOTES),
@@ -70,7 +88,8 @@ def run(config: Config) -> Output:
         Table("crosscheck_depth_worst", "Worst depth errors per engine", cc.depth_worst_cases(table), DEPTH_NOTES)])
     lines = out.lines
     if config.agreement_poses > 0:
-        agree = cc.agreement(objects, config.agreement_poses, config.seed, load_object, progress=config.progress)
+        if agree is None:
+            agree = cc.agreement(objects, config.agreement_poses, config.seed, load_object, progress=config.progress)
         out.tables.append(Table(
             "crosscheck_agreement", "spq against coal on random poses", agree,
             f"spq batched and coal (gjk_tolerance 1e-8) on the same random poses; distances compared on "

@@ -22,6 +22,7 @@ class Config:
     engines: list[str] | None = None  # None: coal and fcl
     engine_configs: int | None = None  # configurations coal and fcl run (None: all)
     progress: bool = False
+    workers: int = 1  # > 1: the cold scene rows also on this many threads (mode "cold N workers")
 
 
 def run(config: Config) -> Output:
@@ -29,17 +30,20 @@ def run(config: Config) -> Output:
     from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
+    from spq.workers import check_workers
 
     cfg = rb.RobotBenchConfig(robot=config.robot, configurations=config.configs, steps=config.steps,
                               seed=config.seed, prune=config.prune, repeats=config.repeats, r=config.r, R=config.R,
-                              engines=config.engines or ["coal", "fcl"], engine_configurations=config.engine_configs)
+                              engines=config.engines or ["coal", "fcl"], engine_configurations=config.engine_configs,
+                              workers=check_workers(config.workers))
     start = time.perf_counter()
     tables = rb.run(cfg, progress=config.progress)
     meta = run_metadata(command="spq bench robot", robot=config.robot, seed=config.seed, configurations=config.configs,
                         trajectory_steps=config.steps, prune_m=config.prune, repeats=config.repeats, stp_r=config.r,
                         stp_R=config.R, spq_tol_abs=DEFAULT_TOL_ABS, spq_tol_rel=DEFAULT_TOL_REL,
                         engine_configurations=config.engine_configs or config.configs,
-                        seconds=round(time.perf_counter() - start, 1))
+                        seconds=round(time.perf_counter() - start, 1),
+                        **({"workers": config.workers} if config.workers > 1 else {}))
     where = (f"{tables['robot']}: {tables['bodies']} bodies, {tables['pairs']} pairs (adjacent bodies skipped). "
              f"{config.configs} random configurations within the joint limits (seed {config.seed}) and a "
              f"{config.steps}-step smooth trajectory. ")
@@ -51,7 +55,10 @@ def run(config: Config) -> Output:
               "number of configurations); forward kinematics included; the results go into one array allocated "
               "beforehand, as a control loop "
               "would keep. cold: every pair starts cold; coherent: per-pair warm starts along the "
-              f"trajectory. pruning_m > 0: pairs whose bounding spheres are farther apart are skipped."),
+              f"trajectory. pruning_m > 0: pairs whose bounding spheres are farther apart are skipped."
+              + (f" cold {config.workers} workers: the cold runs with each call's configurations split over "
+                 f"{config.workers} threads (spq.workers), results equal one thread's bit for bit."
+                 if config.workers > 1 else "")),
         Table("robot_engines", "Robot scene: spq against coal and python-fcl", tables["engines"],
               where + "Same PCH pairs at the same random configurations; the engines run one Python call per "
               f"query, with the body poses computed beforehand (not timed); each pair's loop over the configurations "

@@ -20,18 +20,22 @@ class Config:
     fcl_gap: bool = True  # the fcl_box_gap_3 family
     coal_sweep: bool = True  # coal's DualityGap + Relative sweep (when coal runs)
     progress: bool = False
+    workers: int = 1  # processes (> 1: a local pool, or the Dask LocalCluster's size with scheduler "local")
+    scheduler: str | None = None  # None, "local" or a Dask scheduler address (harness.cluster)
 
 
 def run(config: Config) -> Output:
     from datasets import load_object
     from harness import stability as st
     from harness.report.meta import run_metadata
+    from harness.cluster import describe
     from harness.report.tables import markdown_table
 
     start = time.perf_counter()
     cfg = st.StabilityConfig(seed=config.seed, quick=bool(config.quick), engines=config.engines,
                              fcl_gap=config.fcl_gap, coal_sweep=config.coal_sweep)
-    table, sweep = st.run(cfg, load_object, progress=config.progress)
+    table, sweep = st.run(cfg, load_object, progress=config.progress, workers=config.workers,
+                          scheduler=config.scheduler)
     summary = st.summarize(table)
     families = st.summarize(table, by=("family", "engine"))
     sweep_summary = st.coal_sweep_summary(sweep)
@@ -40,7 +44,9 @@ def run(config: Config) -> Output:
                         engine_tolerances={k: list(v) for k, v in st.ENGINE_TOL.items()},
                         engine_depth_tolerances={k: list(v) for k, v in st.ENGINE_DEPTH_TOL.items()},
                         ambiguous_band_m=st.AMBIGUOUS_BAND, links=list(cfg.links),
-                        queries=len(table) + len(sweep), seconds=round(time.perf_counter() - start, 1))
+                        queries=len(table) + len(sweep), seconds=round(time.perf_counter() - start, 1),
+                        **({"runs_on": describe(config.workers, config.scheduler)}
+                           if config.workers != 1 or config.scheduler is not None else {}))
     notes = ("One row per case, pose and engine. error = distance - exact reference distance (m); rel_error on "
              "separated poses. verdict: ok (|error| <= allowed_error = tol_abs + tol_rel * d_ref + 64 eps * extent, "
              "and a status consistent with the reference outside the contact band max(1e-9 m, tol_abs)), wrong, "

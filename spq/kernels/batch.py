@@ -144,7 +144,7 @@ def query_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)), np.empty(IWORK_SIZE, dtype=np.int64)
 
 
-@kernel
+@kernel(nogil=True)  # threads run chunks of one batch at once (spq.workers)
 def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R, t, work, iwork):
     """Queries for N pose pairs into out (N, OUT_SIZE). poses_a/poses_b: (N or 1, 4, 4), broadcast.
 

@@ -82,7 +82,7 @@ def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpoo
                     pair_ints[p], pair_floats[p], TA, TB, coherent, R, t, work, iwork, row)
 
 
-@kernel
+@kernel(nogil=True)  # threads run chunks of the configurations at once (spq.workers)
 def scene_distances(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, qs,
                     slot_link, slot_offset, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool,
                     slot_centre, slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, links, poses,
