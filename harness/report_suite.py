@@ -500,9 +500,8 @@ def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = N
             chart.look = chart.look or LOOK.get(chart.path.name, "")
     meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick,
                         suite_seconds=timings, seconds=round(time.perf_counter() - start, 1))
-    intro = ["spq measures distance queries between convex shapes: polyhedral hulls (PCH), sphere-torus-patch "
-             "bounding volumes (STP-BV) and superellipsoids (CSE), against python-fcl, coal, pybullet, MuJoCo (and pinocchio on whole robots) and an exact "
-             "reference. Every figure below was measured in this run; each table's source CSV sits beside this page. "
-             + ("Quick run: small settings, for checking that everything works; the figures are noisier." if quick
-                else "Full run.")]
+    intro = ["spq against python-fcl, coal, pybullet, MuJoCo, pinocchio and an exact reference, on "
+             "polyhedral hulls (PCH), sphere-torus-patch bounding volumes (STP-BV) and superellipsoids (CSE); every "
+             "figure measured in this run, CSVs beside this page. "
+             + ("Quick run: small settings, noisier figures." if quick else "Full run.")]
     return render(out, "spq report", intro, sections, meta, lead=verdict(out))

@@ -99,10 +99,9 @@ def verdict(out: Path) -> Lead | None:
     tables = []
     paragraphs = []
     if not engines.empty:
-        tables.append(("Per engine, against the exact reference on the same distance-controlled poses: largest "
-                       "distance error, wrong overlap verdicts (false + missed), failed queries, largest "
-                       "penetration-depth error and sign errors; verdicts on the stability cases; queries per second "
-                       "as a ratio to coal's on one link (per call; batched: spq's compiled loop).", engines, links))
+        tables.append(("Against the exact reference on the same poses: largest distance error, wrong overlap "
+                       "verdicts, failed queries, largest depth error, sign errors; stability verdicts; queries per "
+                       "second over coal's (per call; batched: spq's compiled loop).", engines, links))
         spq_row = engines[engines.engine == "spq"]
         if len(spq_row):
             r = spq_row.iloc[0]
