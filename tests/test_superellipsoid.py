@@ -162,7 +162,11 @@ def test_ellipsoid_distances_agree_with_coal(other):
     # coal stops at gjk_tolerance 1e-8; spq certifies its gap to 1e-10
     np.testing.assert_allclose(ours.distance[separated], theirs[separated], rtol=0, atol=5e-8)
     # coal's distance is a simplex point's norm, an upper bound: never below spq's certified lower bound
-    assert (theirs[separated] >= ours.lower_bound[separated] - 1e-12).all()
+    excess = ours.lower_bound[separated] - theirs[separated]
+    worst = int(np.argmax(excess))
+    assert excess[worst] <= 1e-12, (f"coal {theirs[separated][worst]!r} below spq's lower bound "
+                                    f"{ours.lower_bound[separated][worst]!r} (upper {ours.distance[separated][worst]!r}) "
+                                    f"at pose {np.flatnonzero(separated)[worst]}")
 
 
 def test_sphere_like_ellipsoids_match_the_closed_form_distance_and_never_overlap_when_apart():
