@@ -161,10 +161,13 @@ def test_ellipsoid_distances_agree_with_coal(other):
     assert (ours.status[overlapping] == "overlapping").all()
     # coal stops at gjk_tolerance 1e-8; spq certifies its gap to 1e-10
     np.testing.assert_allclose(ours.distance[separated], theirs[separated], rtol=0, atol=5e-8)
-    # coal's distance is a simplex point's norm, an upper bound: never below spq's certified lower bound
+    # coal's distance is near a simplex point's norm, an upper bound, but not exactly: what coal computed
+    # before in the same process moves it by ~1e-11 (a Box-Box query first puts the Ellipsoid-Box result at
+    # pose 504 7e-12 m below the distance, and 5.8e-12 m below spq's certified lower bound). So the bound
+    # holds up to 1e-10 m, far inside coal's own gjk_tolerance (1e-8 m).
     excess = ours.lower_bound[separated] - theirs[separated]
     worst = int(np.argmax(excess))
-    assert excess[worst] <= 1e-12, (f"coal {theirs[separated][worst]!r} below spq's lower bound "
+    assert excess[worst] <= 1e-10, (f"coal {theirs[separated][worst]!r} below spq's lower bound "
                                     f"{ours.lower_bound[separated][worst]!r} (upper {ours.distance[separated][worst]!r}) "
                                     f"at pose {np.flatnonzero(separated)[worst]}")
 
