@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.check import SECTIONS, SPEED_FLOOR, CheckConfig
+from harness.suites.table1 import CSE_FIT, preset_text
 
 DEFAULT_OUT = Path("reports")
 
@@ -199,6 +200,18 @@ def _workers(text: str) -> int:
         raise argparse.ArgumentTypeError(f"must be an integer >= 1; got {text!r}") from None
 
 
+def _cse(text: str) -> str:
+    """--cse: checked here (harness.table1.cse_spec's ValueError) so that a bad value stops the
+    command before the bodies are built; the suite parses it again."""
+    from harness.suites.table1 import cse_spec
+
+    try:
+        cse_spec(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def _spread_arguments(p, unit: str) -> None:
     """--workers and --scheduler of a suite whose tasks may run on processes or a Dask cluster."""
     p.add_argument("--workers", type=_workers, default=1,
@@ -262,6 +275,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engines", nargs="+", help="engine names (default: all that import)")
     p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m), stp suite")
     p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m), stp suite")
+    p.add_argument("--cse", type=_cse, default=CSE_FIT,
+                   help=f"table1 suite: the CSE-BV of the CSE rows: '{CSE_FIT}' (default: the link's covering fit), a "
+                        f"preset: {preset_text()}, or a,b,c,e1,e2 (semi-axes in m, exponents in (0, 2]); a preset or "
+                        "given CSE is centred on the link's bounding box, its axes along the link's")
     p.add_argument("--robot", default="jvrc1", help="robot suite: a robot name (jvrc1, kuka_iiwa, panda)")
     p.add_argument("--configs", type=int, help="robot(s) suites: random configurations (default: robot 1000, "
                                                 "robots 100, robots --quick 10)")

@@ -1,5 +1,6 @@
 """The paper's Table I: proximity queries per second between two copies of one link covered by each
 bounding volume (PCH, STP, CSE), all six pairs, measured in one run beside coal's PCH-PCH figure.
+The CSE is the link's covering fit unless the config gives one (Table1Config.cse).
 
 Pose distribution: the same as ``spq bench pch`` (uniformly random rotations, translations uniform
 in a cube of +-range metres for both bodies, seeded), so that separated and overlapping poses both
@@ -35,6 +36,7 @@ class Table1Config:
     translation_range: float = 0.3
     repeats: int = 3
     volume_samples: int = 200_000
+    cse: tuple[float, float, float, float, float] | None = None  # (a, b, c, e1, e2) (m, m, m, -, -); None: the fit
 
 
 @dataclass
@@ -66,12 +68,17 @@ def build_bodies(config: Table1Config, load_object) -> dict[str, Body]:
 
     pch = load_object(config.object_name)
     stp = spq.STPBV.from_points(pch.vertices, config.r, config.R)
-    fit = spq.Superellipsoid.fit(pch.vertices)
+    if config.cse is None:
+        cse, cse_offset = spq.Superellipsoid.fit(pch.vertices)
+    else:  # a given CSE need not cover the link: centred on its bounding box, axes along its axes
+        cse = spq.Superellipsoid(*config.cse)
+        cse_offset = np.eye(4)
+        cse_offset[:3, 3] = 0.5 * (pch.vertices.min(axis=0) + pch.vertices.max(axis=0))
     hull_volume = float(ConvexHull(pch.vertices).volume)
     return {
         "PCH": Body("PCH", pch, np.eye(4), len(pch.vertices), hull_volume),
         "STP": Body("STP", stp, np.eye(4), stp.n_patches, monte_carlo_volume(stp, config.volume_samples, config.seed)),
-        "CSE": Body("CSE", fit.shape, fit.pose, 1, float(fit.shape.volume())),
+        "CSE": Body("CSE", cse, cse_offset, 1, float(cse.volume())),
     }
 
 

@@ -65,3 +65,40 @@ def test_bad_workers_are_a_clear_error(tmp_path, capsys):
     assert main(["crosscheck", "--workers", "0", "--per-bucket", "1", "--agreement-poses", "0", "--engines", "spq",
                  "--quiet", "--out", str(tmp_path)]) == 2
     assert "workers must be an integer from 1 to" in capsys.readouterr().err
+
+
+def test_bench_table1_cse_option_reaches_the_table(tmp_path):
+    import pytest
+
+    from harness.suites.table1 import CSE_PRESETS, cse_spec
+    from spq import Superellipsoid
+
+    assert main(["bench", "table1", "--cse", "boxy", "--poses", "200", "--repeats", "1", "--quiet",
+                 "--out", str(tmp_path)]) == 0
+    boxy = Superellipsoid(*CSE_PRESETS["boxy"])
+    volumes = pd.read_csv(tmp_path / "table1_volumes.csv")
+    assert volumes.loc[volumes.BV == "CSE", "volume_m3"].iloc[0] == pytest.approx(boxy.volume(), rel=1e-12)
+    text = (tmp_path / "table1.md").read_text()
+    assert "'boxy'" in text and f"e1 = {boxy.e1:.4g}, e2 = {boxy.e2:.4g}" in text
+    given = "0.05,0.11,0.08,0.3,0.7"
+    assert main(["bench", "table1", "--cse", given, "--poses", "200", "--repeats", "1", "--quiet",
+                 "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "table1.md").read_text()
+    assert "'custom'" in text and "a = 0.05 m, b = 0.11 m, c = 0.08 m, e1 = 0.3, e2 = 0.7" in text
+    assert cse_spec(given) == ("custom", (0.05, 0.11, 0.08, 0.3, 0.7))
+    assert cse_spec("fit") == ("fit", None)
+
+
+def test_bench_table1_rejects_a_bad_cse(capsys):
+    import pytest
+
+    from harness.suites.table1 import cse_spec
+
+    for bad, message in [("0.1,0.1,0.1,0.5", "five numbers"), ("0.1,0.1,0.1,0.5,2.5", "e2 must be in (0, 2]"),
+                         ("0.1,-1,0.1,0.5,0.5", "b must be finite and > 0"), ("cube", "five numbers"),
+                         ("0.1,0.1,x,0.5,0.5", "c must be a number")]:
+        with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+            cse_spec(bad)
+        with pytest.raises(SystemExit):
+            main(["bench", "table1", "--cse", bad, "--poses", "10", "--quiet"])
+        assert message in capsys.readouterr().err

@@ -89,17 +89,21 @@ def _octant_parts(f, u0, u1, u2):
             w1 *= g
         m = mx * g * (1.0 + p)  # S^(1/q2) = S^(1/q2 - 1) S
         # outer norm h = ||(m, u2)||_q1: the ratio of its entries in the log domain, where
-        # log(u2 / m) = log(u2 / mx) - log(S) / q2 needs no power of S (and no wait for it)
+        # log(u2 / m) = log(u2 / mx) - log(S) / q2 needs no power of S (and no wait for it); the
+        # ratio to the q1 - 1 is the ratio to the q1 over the ratio (u2 / m, m by then at hand):
+        # a division instead of an exp, as in _minor_powers
         if u2 > 0.0:
             lr = math.log(u2 / mx) - ls * (f[F_H2] + 1.0)
             if lr == 0.0:  # a tie (also q1 = inf, where inf * 0 would be NaN)
                 p, wm, wz = 1.0, 1.0, 1.0
             elif lr < 0.0:
                 p = math.exp(f[F_Q1] * lr)
-                wm, wz = 1.0, math.exp(f[F_Q1M1] * lr)
+                wm = 1.0
+                wz = p * (m / u2) if p >= TINY_POWER else math.exp(f[F_Q1M1] * lr)
             else:
                 p = math.exp(-f[F_Q1] * lr)
-                wm, wz = math.exp(-f[F_Q1M1] * lr), 1.0
+                wz = 1.0
+                wm = p * (u2 / m) if p >= TINY_POWER else math.exp(-f[F_Q1M1] * lr)
         else:
             p, wm, wz = 0.0, 1.0, 0.0
     else:
