@@ -1079,7 +1079,7 @@ def _small_balls_reach(hulls_sd, radii, tol_abs, tol_rel):
     (or apart, between two STP-BVs), is at least -radii, while the bodies overlap at least as deep
     as the hulls grown by the radii: sd <= hulls_sd - radii. So its gap is at least -hulls_sd, and
     where the hulls overlap by more than its tolerance the patch rounds can only fail, at the cost of
-    a descent and an STP-BV support or more each (on JVRC-1, a sixth of a deep STP-PCH overlap's time)."""
+    a descent and an STP-BV support or more each (on JVRC-1, about a tenth of a deep STP-PCH overlap's time)."""
     return -hulls_sd <= PATCH_REACH_SLACK * (tol_abs + tol_rel * radii)
 
 
