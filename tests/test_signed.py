@@ -308,3 +308,55 @@ def test_scene_signed_distances_match_the_reference_per_pair():
                 assert signed.distance[k] == plain.distance[k]
             overlaps += ref.signed_distance < -1e-9
     assert overlaps >= 5
+
+
+def test_patch_rounds_skipped_where_the_hulls_overlap_could_not_have_closed():
+    """signed_from_hulls skips the small-ball certificate (query._certify_overlap) where the hulls
+    overlap by more than its tolerance (query._small_balls_reach). On JVRC-1's overlapping STP-PCH
+    pairs that certificate must then fail even at the bodies' own optimal normal (the hulls' signed
+    distance from the PCH scene, an independent query); where it is not skipped and the overlap is
+    shallow, it closes there, so the check can tell."""
+    from tests.conftest import require_shared_datasets
+
+    require_shared_datasets()
+    from harness.robot_bench import RobotBenchConfig, load_scene
+    from harness.robot_poses import random_configurations
+    from spq.kernels.batch import F_MARGIN_A, F_MARGIN_B, I_KIND_A, I_KIND_B
+    from spq.kernels.gjk import (OUT_DISTANCE, OUT_NORMAL, OUT_SIZE, OUT_STATUS, OVERLAPPING, PROBE_END, PROBE_ROW,
+                                 WARM_SIZE)
+    from spq.kernels.kinds import STP
+    from spq.kernels.query import _certify_overlap, _small_balls_reach
+
+    config = RobotBenchConfig()
+    auto, pch = load_scene(config, "auto"), load_scene(config, "pch")
+    qs = random_configurations(auto.model, 25, 7)
+    signed_auto = auto.distances_many(qs, signed=True)
+    hulls = pch.distances_many(qs, signed=True)[:, :, OUT_DISTANCE]
+    work = np.zeros((PROBE_END, 4))
+    skipped = closed_shallow = 0
+    for i, q in enumerate(qs):
+        poses = auto.body_poses(q)
+        for p in np.flatnonzero(signed_auto[i, :, OUT_STATUS] == OVERLAPPING):
+            ints, floats = auto._pair_ints[p], auto._pair_floats[p]
+            if (ints[I_KIND_A] == STP) == (ints[I_KIND_B] == STP):
+                continue
+            sa, sb = auto._pair_slots[p]
+            fa, fb, ia, ib = auto._slot_frange[sa], auto._slot_frange[sb], auto._slot_irange[sa], auto._slot_irange[sb]
+            fA, iA = auto._fpool[fa[0]:fa[1]], auto._ipool[ia[0]:ia[1]]
+            fB, iB = auto._fpool[fb[0]:fb[1]], auto._ipool[ib[0]:ib[1]]
+            a, b = auto.pairs[p]
+            TA, TB = poses[a], poses[b]
+            R, t = TA[:3, :3].T @ TB[:3, :3], TA[:3, :3].T @ (TB[:3, 3] - TA[:3, 3])
+            m = TA[:3, :3].T @ signed_auto[i, p, OUT_NORMAL:OUT_NORMAL + 3]
+            r = (fA if ints[I_KIND_A] == STP else fB)[0]
+            reach = _small_balls_reach(hulls[i, p], r + floats[F_MARGIN_A] + floats[F_MARGIN_B], 1e-10, 1e-10)
+            verdict = _certify_overlap(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B],
+                                       fB, iB, R, t, m[0], m[1], m[2], 1e-10, 1e-10,
+                                       np.zeros(WARM_SIZE, dtype=np.int64), work[PROBE_ROW:PROBE_END],
+                                       np.zeros(WARM_SIZE, dtype=np.int64), np.zeros(OUT_SIZE))
+            if not reach:
+                assert verdict != 1, (i, p)
+                skipped += 1
+            elif verdict == 1 and signed_auto[i, p, OUT_DISTANCE] > -0.5 * r:
+                closed_shallow += 1
+    assert skipped >= 20 and closed_shallow >= 20
