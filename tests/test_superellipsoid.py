@@ -141,6 +141,32 @@ def _coal_distances(geom_a, geom_b, poses_a, poses_b):
     return CoalPair(geom_a, geom_b, request).distance_loop(np.asarray(poses_a), np.asarray(poses_b))
 
 
+def _ellipsoid_to_box_upper(axes, half, pose_a, pose_b):
+    """An upper bound on the distance (m) between the ellipsoid ``axes`` at pose_a and the box of
+    half-sides ``half`` at pose_b, shared with no solver: the least distance from a point of the
+    ellipsoid's surface (its angle parametrisation, best of a grid, then Nelder-Mead) to the box (the
+    closest point of a box is its clamp in the box's frame). Every point tried lies on the ellipsoid,
+    so every value is the distance of a pair of points of the two bodies: never below the distance."""
+    from scipy.optimize import minimize
+
+    a = np.asarray(axes)
+    h = np.asarray(half)
+    to_b = np.linalg.inv(pose_b) @ pose_a
+
+    def gap(uv):
+        u, v = np.atleast_1d(uv[0]), np.atleast_1d(uv[1])
+        x = np.stack([a[0] * np.cos(u) * np.cos(v), a[1] * np.sin(u) * np.cos(v), a[2] * np.sin(v)], axis=-1)
+        y = x @ to_b[:3, :3].T + to_b[:3, 3]
+        return np.linalg.norm(y - np.clip(y, -h, h), axis=-1)
+
+    u, v = np.meshgrid(np.linspace(-np.pi, np.pi, 97), np.linspace(-np.pi / 2, np.pi / 2, 49))
+    values = gap((u.ravel(), v.ravel()))
+    start = np.array([u.ravel()[np.argmin(values)], v.ravel()[np.argmin(values)]])
+    best = minimize(lambda uv: gap(uv)[0], start, method="Nelder-Mead",
+                    options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 4000})
+    return min(float(best.fun), float(values.min()))
+
+
 @pytest.mark.parametrize("other", ["ellipsoid", "box"])
 def test_ellipsoid_distances_agree_with_coal(other):
     coal = pytest.importorskip("coal")
@@ -165,6 +191,11 @@ def test_ellipsoid_distances_agree_with_coal(other):
     # before in the same process moves it by ~1e-11 (a Box-Box query first puts the Ellipsoid-Box result at
     # pose 504 7e-12 m below the distance, and 5.8e-12 m below spq's certified lower bound). So the bound
     # holds up to 1e-10 m, far inside coal's own gjk_tolerance (1e-8 m).
+    if other == "box":  # the strict check of the lower bound, on an exact upper bound of the distance
+        oracle = np.array([_ellipsoid_to_box_upper((0.12, 0.08, 0.05), (0.05, 0.07, 0.09), poses_a[i], poses_b[i])
+                           for i in np.flatnonzero(separated)])
+        assert (ours.lower_bound[separated] <= oracle + 1e-12).all()
+        assert np.abs(ours.distance[separated] - oracle).max() <= 1e-9  # the oracle is tight: the check can tell
     excess = ours.lower_bound[separated] - theirs[separated]
     worst = int(np.argmax(excess))
     assert excess[worst] <= 1e-10, (f"coal {theirs[separated][worst]!r} below spq's lower bound "
