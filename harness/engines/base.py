@@ -145,6 +145,25 @@ def check_pose_batch(poses, name: str) -> np.ndarray:
     return as_poses(arr, name)
 
 
+@dataclass(frozen=True)
+class Mesh:
+    """A polyhedron as the native engines read it (see :func:`mesh_arrays`): what crosses the pipe
+    to an engine's child process, which then need not import spq to unpickle the shape."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def as_mesh(shape):
+    """``shape``'s vertices and faces as a :class:`Mesh`, or ``shape`` itself if it has none (the
+    engine given it then raises its own TypeError)."""
+    vertices = getattr(shape, "vertices", None)
+    faces = getattr(shape, "faces", None)
+    if vertices is None or faces is None:
+        return shape
+    return Mesh(np.asarray(vertices), np.asarray(faces))
+
+
 def mesh_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
     """Vertices ((n, 3) float64, local frame, m) and triangles ((m, 3) int64) of a polyhedron.
 
@@ -188,7 +207,12 @@ class PreparedPair(ABC):
         """One query per row of ``poses_a`` and ``poses_b`` (each N x 4 x 4, validated as rigid
         transforms); loops over the rows in Python, with :meth:`query`'s contract per row."""
         poses_a, poses_b = self._check_batches(poses_a, poses_b)
-        query = self._query  # the batch is checked already; skip query()'s per-pose check
+        return self.query_checked(poses_a, poses_b)
+
+    def query_checked(self, poses_a: np.ndarray, poses_b: np.ndarray) -> BatchResult:
+        """:meth:`query_many` on batches checked already (float64 N x 4 x 4 rigid transforms of
+        equal length), as by the process that sent them to an engine's child."""
+        query = self._query  # skip query()'s per-pose check
         results = []
         for pose_a, pose_b in zip(poses_a, poses_b):
             try:

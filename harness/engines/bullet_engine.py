@@ -104,9 +104,8 @@ class BulletPair(PreparedPair):
             out[i] = min(c[_CONTACT_DISTANCE] for c in contacts) if contacts else np.nan
         return out
 
-    def query_many(self, poses_a, poses_b) -> BatchResult:
-        """As :meth:`PreparedPair.query_many`, converting all rotations to quaternions in one scipy call."""
-        poses_a, poses_b = self._check_batches(poses_a, poses_b)
+    def query_checked(self, poses_a, poses_b) -> BatchResult:
+        """As :meth:`PreparedPair.query_checked`, converting all rotations to quaternions in one scipy call."""
         if len(poses_a) == 0:
             return BatchResult.empty(0)
         quats_a = Rotation.from_matrix(poses_a[:, :3, :3]).as_quat().tolist()
