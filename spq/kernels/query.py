@@ -985,6 +985,20 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
             for i in range(k):
                 x -= lam[i] * work[i, c]
             dirv[c] = x
+        # the patches facing along the loose search's normal settle most of these shallow overlaps
+        # (where no small sphere faces, the hulls' full-tolerance distance below would not settle
+        # them); their certificate holds for either sign while the depth is below r (JVRC-1, auto,
+        # cold: 2.2 of 2.5 us more than the unsigned query -> 1.4)
+        dn = math.sqrt(dirv[0] ** 2 + dirv[1] ** 2 + dirv[2] ** 2)
+        if dn > 0.0:
+            saved = iwork[EPA_IOFF:EPA_IOFF + WARM_SIZE]  # the hulls' simplex, for the descent below
+            for i in range(WARM_SIZE):
+                saved[i] = warm[i]
+            if _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dirv[0] / dn, dirv[1] / dn, dirv[2] / dn,
+                               tol_abs, tol_rel, max_iter, warm, work, iwork, out, it):
+                return int(out[OUT_STATUS])
+            for i in range(WARM_SIZE):
+                warm[i] = saved[i]
         status, k, v0, v1, v2, vv, lower, more = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs, tol_rel, max_iter,
                                                          dirv, warm, work)
         eit += more
