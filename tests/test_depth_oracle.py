@@ -82,7 +82,22 @@ def test_spq_depth_matches_the_oracle_and_its_interval_holds_it(bodies, pair):
     suite = do.depth_suite(do.body_of(an, sa, oa), do.body_of(bn, sb, ob), size, 1 if "STP" in pair else 3, 5, pair,
                            buckets=buckets)
     np.testing.assert_allclose(-suite.oracle, suite.target, atol=do.AGREE)  # the suite reached its depths
-    table = do.compare(suite, spq.distances(sa, sb, suite.pose_a @ oa, suite.pose_b @ ob, signed=True))
+    result = spq.distances(sa, sb, suite.pose_a @ oa, suite.pose_b @ ob, signed=True)
+    table = do.compare(suite, result)
     assert (table.spq_status == "overlapping").all()
     assert table.abs_error_m.max() <= 1e-8
     assert table.contains.all()
+    # acceptance 3 on these pairs: the witness points span the signed distance along the normal, and
+    # lie on their bodies' surfaces as the oracle's own supports see them
+    gap = result.point_b - result.point_a - result.distance[:, None] * result.normal
+    assert np.abs(gap).max() <= 1e-12
+    U = do.fibonacci_sphere(400)
+    A, B = do.body_of(an, sa, oa), do.body_of(bn, sb, ob)
+    for i in range(len(result.distance)):
+        n = result.normal[i][None]
+        for body, pose, point, along in ((A, suite.pose_a[i], result.point_a[i], n), (B, suite.pose_b[i],
+                                                                                      result.point_b[i], -n)):
+            _, h = body.world_support(pose, along)
+            assert abs(along[0] @ point - h[0]) <= 1e-9  # on the support plane along the normal
+            _, hu = body.world_support(pose, U)
+            assert (U @ point <= hu + 1e-9).all()  # and within the body
