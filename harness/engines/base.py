@@ -155,13 +155,12 @@ class Mesh:
 
 
 def as_mesh(shape):
-    """``shape``'s vertices and faces as a :class:`Mesh`, or ``shape`` itself if it has none (the
-    engine given it then raises its own TypeError)."""
-    vertices = getattr(shape, "vertices", None)
-    faces = getattr(shape, "faces", None)
-    if vertices is None or faces is None:
+    """``shape``'s arrays (:func:`mesh_arrays`) as a :class:`Mesh`, or ``shape`` itself if the
+    engines cannot take it (the engine given it then raises its own error, in its own words)."""
+    try:
+        return Mesh(*mesh_arrays(shape))
+    except (TypeError, ValueError):
         return shape
-    return Mesh(np.asarray(vertices), np.asarray(faces))
 
 
 def mesh_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
