@@ -112,13 +112,15 @@ def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2):
                     hi = lam
                 else:
                     lo = lam
+                if curve > 0.0 and abs(slope) <= SEGMENT_PARAMETER_TOL * curve:
+                    # converged: tested before the bracket, which a last step this small may leave
+                    # by rounding alone (lam is then an end of it), and bisection would throw away
+                    lam = min(hi, max(lo, lam - slope / curve))
+                    break
                 nxt = lam - slope / curve if curve > 0.0 else 0.5 * (lo + hi)
                 if not (lo < nxt < hi):
                     nxt = 0.5 * (lo + hi)
-                done = abs(nxt - lam) <= SEGMENT_PARAMETER_TOL
                 lam = nxt
-                if done:
-                    break
     y0, y1, y2 = s0 + lam * g0, s1 + lam * g1, s2 + lam * g2
     ok, c0, c1, c2 = _circle_point(f, ix, p, y0, y1, y2, -1.0)
     if not ok:
