@@ -202,3 +202,32 @@ def test_from_mesh_builds_the_same_stp_bv_as_the_mesh_vertices():
     assert from_mesh.counts() == from_points.counts()
     d = directions(2000, 11)
     np.testing.assert_array_equal(from_mesh.support(d), from_points.support(d))
+
+
+@pytest.mark.parametrize("name, r, R", [("kuka_link_4", 0.005, 2.0), ("panda_hand", 0.01, 0.2)])
+def test_the_hull_vertex_table_answers_as_the_small_spheres_own_records_and_the_brute_force(name, r, R):
+    """The table the certificates read from a hull vertex: ownership as the small sphere's own region
+    test, the march step as march_step's, and where it owns a direction the support is the vertex
+    plus r times it, by the brute force over Q."""
+    from datasets import load_object
+    from spq.kernels.stp_batch import hull_vertex_table_answers
+
+    pts = load_object(name).vertices
+    stp = STPBV.from_points(pts, r, R)
+    kd = stp.kernel_data()
+    d = directions(3000, 3)
+    u = unit(d)
+    owns, steps = hull_vertex_table_answers(kd.fdata, kd.idata, np.ascontiguousarray(d))
+    patches = stp.support_patches(d, method="naive")[1]
+    small = stp.hull_to_small
+    np.testing.assert_array_equal(owns, patches[:, None] == small[None, :])
+    assert owns.any(axis=1).mean() > 0.3  # the small spheres own a fair share at these radii
+    k, h = np.nonzero(owns)
+    expected = brute_force_support_many(stp.topology.vertices, r, R, d[k])
+    np.testing.assert_allclose(stp.hull.vertices[h] + r * u[k], expected, rtol=0, atol=1e-9)
+    # a step leads to a neighbour of the sphere across a boundary it violates, or nowhere where it owns
+    assert ((steps < 0) == owns).all()
+    off, rec = stp.patch_offsets, stp.records
+    for j in range(0, len(small), max(1, len(small) // 25)):
+        nb = rec[off[small[j]]:off[small[j] + 1], 2]
+        assert np.isin(steps[~owns[:, j], j], nb).all()

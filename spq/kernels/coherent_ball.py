@@ -125,7 +125,7 @@ def _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, u0, u1
         v, w = int(FI[0, 0]), int(FI[0, 1])
         s0, s1, s2 = _p_to_s(stp_a, R, t, fP[3 * v], fP[3 * v + 1], fP[3 * v + 2])
         e0, e1, e2 = _p_to_s(stp_a, R, t, fP[3 * w], fP[3 * w + 1], fP[3 * w + 2])
-        g0, g1, g2, y0, y1, y2 = torus_against_segment(fS, iS, patch, s0, s1, s2, e0, e1, e2)
+        g0, g1, g2, y0, y1, y2 = torus_against_segment(fS, iS, patch, s0, s1, s2, e0, e1, e2, 0.5)
         x0, x1, x2 = y0 - g0, y1 - g1, y2 - g2
     else:
         x0, x1, x2, _ = ball_of_patch(fS, iS, patch, u0, u1, u2)

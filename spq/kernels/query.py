@@ -51,6 +51,7 @@ from spq.kernels.gjk import (
     _finish,
     certify_overlap,
     descend,
+    descend_inline,
     minkowski_support,
 )
 from spq.kernels.coherent_ball import coherent_ball_finish
@@ -87,6 +88,8 @@ from spq.kernels.stp_support import (
     METHOD_HULL,
     _offsets,
     ball_of_patch,
+    hull_vertex_step,
+    small_sphere_owns,
     find_march,
     find_patch,
     hull_core,
@@ -138,7 +141,7 @@ def _hull_hint(ix, h):
     return small_sphere_of_hull_vertex(ix, h)
 
 
-@kernel
+@kernel(inline="always")
 def small_sphere_of_hull_vertex(ix, h):
     """The small sphere of underlying-hull vertex h, or -1 if there is no such vertex."""
     if h < 0 or h >= ix[IDX_H]:
@@ -275,7 +278,7 @@ def _owned_support(known, k, f, ix, p, u0, u1, u2, warm, slot, out):
     return _support_of_side(k, f, ix, p, u0, u1, u2, warm, slot, out)
 
 
-@kernel
+@kernel(inline="always")
 def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known, out):
     """Whether the bodies' own supports along the unit normal m (A's frame, A to B) close the gap:
     upper = |p_B - p_A| for the witness points in out (a non-STP side's must be set, margin
@@ -300,16 +303,23 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
         sb[0], sb[1], sb[2] = to_a(R, t, tmp[0], tmp[1], tmp[2])
         for c in range(3):
             sb[c] -= mB * (m0, m1, m2)[c]
-    for c in range(3):
-        if kA == STP:
-            out[OUT_POINT_A + c] = sa[c]
-        if kB == STP:
-            out[OUT_POINT_B + c] = sb[c]
+    return _close_gap(kA, kB, sa[0], sa[1], sa[2], sb[0], sb[1], sb[2], m0, m1, m2, tol_abs, tol_rel, out)
+
+
+@kernel(inline="always")
+def _close_gap(kA, kB, sa0, sa1, sa2, sb0, sb1, sb2, m0, m1, m2, tol_abs, tol_rel, out):
+    """_certify's test, given the supports sa, sb (margins included, A's frame) along the unit normal m:
+    whether the gap between the witness points in out (an STP side's set to its support here) and the
+    slab between the support planes close; if so, the result is written to out."""
+    if kA == STP:
+        out[OUT_POINT_A], out[OUT_POINT_A + 1], out[OUT_POINT_A + 2] = sa0, sa1, sa2
+    if kB == STP:
+        out[OUT_POINT_B], out[OUT_POINT_B + 1], out[OUT_POINT_B + 2] = sb0, sb1, sb2
     gx = out[OUT_POINT_B] - out[OUT_POINT_A]
     gy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
     gz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
     upper = math.sqrt(gx * gx + gy * gy + gz * gz)
-    slab = m0 * (sb[0] - sa[0]) + m1 * (sb[1] - sa[1]) + m2 * (sb[2] - sa[2])
+    slab = m0 * (sb0 - sa0) + m1 * (sb1 - sa1) + m2 * (sb2 - sa2)
     if slab > 0.0 and upper - slab <= tol_abs + tol_rel * upper:
         out[OUT_DISTANCE] = upper
         out[OUT_LOWER] = slab
@@ -558,7 +568,7 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             else:
                 s0, s1, s2 = to_b(R, t, work[4, 0], work[4, 1], work[4, 2])
                 t0, t1, t2 = to_b(R, t, work[5, 0], work[5, 1], work[5, 2])
-            x0, x1, x2, y0, y1, y2 = torus_against_segment(fs, ist, p, s0, s1, s2, t0, t1, t2)
+            x0, x1, x2, y0, y1, y2 = torus_against_segment(fs, ist, p, s0, s1, s2, t0, t1, t2, 0.5)
         kept = False
         if torus:
             x0, x1, x2, kept, bp, lt, lh, pt, ph, nt, nh = _torus_step(fs, ist, p, d0, d1, d2, u0, u1, u2, x0, x1, x2,
@@ -622,19 +632,19 @@ def copy_point_simplex(src, dst, point_side):
         dst[c0 + i] = src[c0 + i]
 
 
-@kernel
-def small_sphere_of_simplex(ix, ids, count):
-    """The small sphere of the one underlying-hull vertex that all count ids (a side's points of a
-    descent's simplex on the hull) share, or -1 if they differ or the STP-BV has no hull."""
-    if count == 0:
+@kernel(inline="always")
+def hull_vertex_of_simplex(ix, ids, count):
+    """The one underlying-hull vertex that all count ids (a side's points of a descent's simplex on
+    the hull) share, or -1 if they differ or the STP-BV has no hull."""
+    if count == 0 or ids[0] < 0 or ids[0] >= ix[IDX_H]:
         return -1
     for i in range(1, count):
         if ids[i] != ids[0]:
             return -1
-    return small_sphere_of_hull_vertex(ix, ids[0])
+    return ids[0]
 
 
-@kernel
+@kernel(inline="always")
 def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2, vv, tol_abs, tol_rel, warm, work,
                             scratch, fscratch, out):
     """Certify the loose search's result (simplex of k points in work, ids in scratch, closest point
@@ -646,31 +656,44 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
     hull's support: the hull's distance is the STP-BV's. The bodies' supports along the normal
     certify it (this is the commonest case: small spheres own most of the directions at small r)."""
     count = scratch[WARM_COUNT]
-    pa = pb = -1
+    pa = pb = ha = hb = -1
     if kA == STP:
-        pa = small_sphere_of_simplex(iA, scratch[WARM_SIMPLEX_A:WARM_SIMPLEX_A + count], count)
-        if pa < 0:
+        ha = hull_vertex_of_simplex(iA, scratch[WARM_SIMPLEX_A:WARM_SIMPLEX_A + count], count)
+        if ha < 0:
             return False
     if kB == STP:
-        pb = small_sphere_of_simplex(iB, scratch[WARM_SIMPLEX_B:WARM_SIMPLEX_B + count], count)
-        if pb < 0:
+        hb = hull_vertex_of_simplex(iB, scratch[WARM_SIMPLEX_B:WARM_SIMPLEX_B + count], count)
+        if hb < 0:
             return False
     n = math.sqrt(vv)
     m0, m1, m2 = -v0 / n, -v1 / n, -v2 / n
     simplex_witnesses(work, k, mA * m0, mA * m1, mA * m2, -mB * m0, -mB * m1, -mB * m2, out)
-    known = 0
     if work[FRESH_ROW, FRESH_COL] == 1.0:
         # the descent's last supports were along m: the hulls' (grown by r on an STP side, where the
-        # small sphere's support is its centre, the hull vertex, plus r m if it owns m)
-        known = KNOWN_A | KNOWN_B
+        # small sphere's support is its centre, the hull vertex, plus r m if it owns m, which the
+        # hull-vertex table tells without the sphere's own records)
+        if kA == STP and not small_sphere_owns(fA, iA, ha, m0, m1, m2):
+            return False
+        if kB == STP:
+            e0, e1, e2 = rot_to_b(R, -m0, -m1, -m2)
+            if not small_sphere_owns(fB, iB, hb, e0, e1, e2):
+                return False
         grow_a = mA + (fA[F_R] if kA == STP else 0.0)
         grow_b = mB + (fB[F_R] if kB == STP else 0.0)
-        for c in range(3):
-            fscratch[0, c] = work[SUPPORT_ROW_A, c] + grow_a * (m0, m1, m2)[c]
-            fscratch[1, c] = work[SUPPORT_ROW_B, c] - grow_b * (m0, m1, m2)[c]
-    if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known,
-                    out):
-        return False
+        if not _close_gap(kA, kB, work[SUPPORT_ROW_A, 0] + grow_a * m0, work[SUPPORT_ROW_A, 1] + grow_a * m1,
+                          work[SUPPORT_ROW_A, 2] + grow_a * m2, work[SUPPORT_ROW_B, 0] - grow_b * m0,
+                          work[SUPPORT_ROW_B, 1] - grow_b * m1, work[SUPPORT_ROW_B, 2] - grow_b * m2, m0, m1, m2,
+                          tol_abs, tol_rel, out):
+            return False
+    else:
+        pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
+        pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
+        if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
+                        out):
+            return False
+    # read only now, for the next query's warm start: the certificate does not wait for it
+    pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
+    pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
     if kA == STP:
         warm[0] = pa
     if kB == STP:
@@ -682,59 +705,80 @@ MARCH_TO_FEATURE_STEPS = 16  # walk steps of march_to_feature before giving up (
 
 
 @kernel
-def ball_against_feature(f, ix, p, s0, s1, s2, t0, t1, t2):
+def ball_against_feature(f, ix, p, s0, s1, s2, t0, t1, t2, guess):
     """Patch p's ball facing the segment s-t (a point if s == t; local frame): (radius, x, y) with
     y the segment's point nearest to the ball and x = y - centre. A sphere's centre is fixed; a
     torus's is its circle point farthest from the segment's point nearest to the patch
-    (torus_against_segment)."""
+    (torus_against_segment, from the segment parameter guess)."""
     c0, c1, c2, rad = ball_of_patch(f, ix, p, s0, s1, s2)
     if p < ix[IDX_V] + ix[IDX_F]:
         y0, y1, y2 = _closest_on_segment(s0, s1, s2, t0, t1, t2, c0, c1, c2)
         return rad, y0 - c0, y1 - c1, y2 - c2, y0, y1, y2
-    x0, x1, x2, y0, y1, y2 = torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2)
+    x0, x1, x2, y0, y1, y2 = torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2, guess)
     return rad, x0, x1, x2, y0, y1, y2
 
 
 @kernel
-def march_to_feature(f, ix, p, s0, s1, s2, t0, t1, t2):
+def march_to_feature(f, ix, h, s0, s1, s2, t0, t1, t2, guess):
     """The patch of an STP-BV nearest to the outside segment s-t (a point if s == t; local frame),
-    by a walk from patch p: take p's ball facing the segment, and while the direction u from its
-    centre to the segment's nearest point y leaves p's region, step across the boundary u violates
-    (one guided-march step). Where p owns u, the ball's point along u is the body's support along u,
-    so the segment is |y - centre| - radius from the body, exactly. Returns (patch, unit u, y);
-    patch -1 if the walk does not settle within MARCH_TO_FEATURE_STEPS steps or the segment meets a
-    ball."""
-    o_planes = _offsets(ix)[2]
-    for _ in range(MARCH_TO_FEATURE_STEPS):
-        rad, x0, x1, x2, y0, y1, y2 = ball_against_feature(f, ix, p, s0, s1, s2, t0, t1, t2)
+    by a walk from the small sphere of underlying-hull vertex h: take the patch's ball facing the
+    segment, and while the direction u from its centre to the segment's nearest point y leaves the
+    patch's region, step across the boundary u violates (one guided-march step). Where the patch
+    owns u, the ball's point along u is the body's support along u, so the segment is
+    |y - centre| - radius from the body, exactly. Returns (patch, unit u, y, that distance), whence
+    the body's support along u is y - distance u; patch -1 if the walk does not settle within
+    MARCH_TO_FEATURE_STEPS steps or the segment meets a ball.
+
+    guess: the segment parameter where the search on the hull ended, which starts a torus's solve.
+    The first step is the hull vertex's: its small sphere is centred on the vertex, which the search
+    on the hull has just read, and its region is in the hull-vertex table."""
+    o_planes, o_hull = _offsets(ix)[2:]
+    c0, c1, c2 = f[o_hull + 3 * h], f[o_hull + 3 * h + 1], f[o_hull + 3 * h + 2]
+    y0, y1, y2 = _closest_on_segment(s0, s1, s2, t0, t1, t2, c0, c1, c2)
+    x0, x1, x2 = y0 - c0, y1 - c1, y2 - c2
+    xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    if not (xn > f[F_R]):
+        return -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    u0, u1, u2 = x0 / xn, x1 / xn, x2 / xn
+    p = hull_vertex_step(f, ix, h, u0, u1, u2)
+    if p < 0:
+        return small_sphere_of_hull_vertex(ix, h), u0, u1, u2, y0, y1, y2, xn - f[F_R]
+    for _ in range(MARCH_TO_FEATURE_STEPS - 1):
+        rad, x0, x1, x2, y0, y1, y2 = ball_against_feature(f, ix, p, s0, s1, s2, t0, t1, t2, guess)
         xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
         if not (xn > rad):
             break
         u0, u1, u2 = x0 / xn, x1 / xn, x2 / xn
         nxt = march_step(f, ix, o_planes, p, u0, u1, u2)
         if nxt < 0:
-            return p, u0, u1, u2, y0, y1, y2
+            return p, u0, u1, u2, y0, y1, y2, xn - rad
         p = nxt
-    return -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
-@kernel
-def _segment_of(P, k):
-    """(ok, s, t): the k rows of P (a side's points of a descent's simplex) as a segment s-t (s == t:
-    one point); not ok if they are more than two distinct points."""
+@kernel(inline="always")
+def _segment_of(P, lam, k):
+    """(ok, s, t, w): the k rows of P (a side's points of a descent's simplex, weights lam) as a
+    segment s-t (s == t: one point) and the simplex's point on it, s + w (t - s); not ok if they are
+    more than two distinct points."""
     s0, s1, s2 = P[0, 0], P[0, 1], P[0, 2]
     t0, t1, t2 = s0, s1, s2
+    w = 0.0
     for i in range(1, k):
         x0, x1, x2 = P[i, 0], P[i, 1], P[i, 2]
-        if (x0 == s0 and x1 == s1 and x2 == s2) or (x0 == t0 and x1 == t1 and x2 == t2):
+        if x0 == s0 and x1 == s1 and x2 == s2:
             continue
         if t0 != s0 or t1 != s1 or t2 != s2:
-            return False, s0, s1, s2, t0, t1, t2
+            if x0 == t0 and x1 == t1 and x2 == t2:
+                w += lam[i]
+                continue
+            return False, s0, s1, s2, t0, t1, t2, w
         t0, t1, t2 = x0, x1, x2
-    return True, s0, s1, s2, t0, t1, t2
+        w += lam[i]
+    return True, s0, s1, s2, t0, t1, t2, w
 
 
-@kernel
+@kernel(inline="always")
 def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel, warm, work, scratch, fscratch,
                       out):
     """Certify the distance of an STP-BV to a non-STP body whose side of the loose search's simplex
@@ -745,35 +789,39 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
     if (kA == STP) == (kB == STP) or k < 1:
         return False
     if kA == STP:
-        ok, s0, s1, s2, t0, t1, t2 = _segment_of(work[8:12], k)
-        hint = small_sphere_of_hull_vertex(iA, scratch[0])
-        if not ok or hint < 0:
+        ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[8:12], work[12], k)
+        h = scratch[0]
+        if not ok or not 0 <= h < iA[IDX_H]:
             return False
-        p, m0, m1, m2, y0, y1, y2 = march_to_feature(fA, iA, hint, s0, s1, s2, t0, t1, t2)
+        p, m0, m1, m2, y0, y1, y2, gap = march_to_feature(fA, iA, h, s0, s1, s2, t0, t1, t2, w)
         if p < 0:
             return False
         for c in range(3):
             out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (m0, m1, m2)[c]
-        settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, p, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
-                           0, out)
+            # the march's patch owns m: A's support along it is its ball's point
+            fscratch[0, c] = (y0, y1, y2)[c] + (mA - gap) * (m0, m1, m2)[c]
+        settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+                           KNOWN_A, out)
         if settled:
             warm[0] = p
         return settled
-    ok, s0, s1, s2, t0, t1, t2 = _segment_of(work[4:8], k)
-    hint = small_sphere_of_hull_vertex(iB, scratch[1])
-    if not ok or hint < 0:
+    ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[4:8], work[12], k)
+    h = scratch[1]
+    if not ok or not 0 <= h < iB[IDX_H]:
         return False
     s0, s1, s2 = to_b(R, t, s0, s1, s2)
     t0, t1, t2 = to_b(R, t, t0, t1, t2)
-    p, u0, u1, u2, y0, y1, y2 = march_to_feature(fB, iB, hint, s0, s1, s2, t0, t1, t2)
+    p, u0, u1, u2, y0, y1, y2, gap = march_to_feature(fB, iB, h, s0, s1, s2, t0, t1, t2, w)
     if p < 0:
         return False
     m0, m1, m2 = rot_to_a(R, -u0, -u1, -u2)
     w0, w1, w2 = to_a(R, t, y0, y1, y2)
+    b0, b1, b2 = to_a(R, t, y0 - gap * u0, y1 - gap * u1, y2 - gap * u2)  # B's support along -m
     for c in range(3):
         out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (m0, m1, m2)[c]
-    settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, p, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
-                       out)
+        fscratch[1, c] = (b0, b1, b2)[c] - mB * (m0, m1, m2)[c]
+    settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+                       KNOWN_B, out)
     if settled:
         warm[1] = p
     return settled
@@ -837,8 +885,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         if n == 0.0:
             cold_direction(R, t, centres, dir_io)
         loose = LOOSE_REL_TOL_ONE_STP if (kA == STP) != (kB == STP) else LOOSE_REL_TOL
-        status, k, v0, v1, v2, vv, lower, it = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs, max(tol_rel, loose),
-                                                       max_iter, dir_io, scratch, work)
+        status, k, v0, v1, v2, vv, lower, it = descend_inline(ka, fa, ia, kb, fb, ib, R, t, tol_abs,
+                                                              max(tol_rel, loose), max_iter, dir_io, scratch, work)
         extra = it
         if (kA == STP) != (kB == STP):  # its simplex on the polytope side seeds the patch finish
             copy_point_simplex(scratch, warm, 0 if kA == STP else 1)

@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from spq.kernels.jit import kernel
-from spq.kernels.stp_support import IDX_E, IDX_F, IDX_V, _offsets, find_patch, in_region, patch_support
+from spq.kernels.stp_support import (IDX_E, IDX_F, IDX_H, IDX_V, _offsets, find_patch, hull_vertex_step, in_region,
+                                     patch_support, small_sphere_owns)
 
 
 @kernel(allocates=True)
@@ -48,3 +49,20 @@ def owner_counts(f, ix, directions):
             if in_region(f, ix, o_planes, p, d0 / n, d1 / n, d2 / n):
                 counts[k] += 1
     return counts
+
+
+@kernel(allocates=True)
+def hull_vertex_table_answers(f, ix, directions):
+    """For each direction (m rows, any length) and underlying-hull vertex h (H), what the hull-vertex
+    table says: whether h's small sphere owns it (m, H) and the patch its march step goes to (m, H;
+    -1 where it owns it)."""
+    m, H = directions.shape[0], ix[IDX_H]
+    owns = np.zeros((m, H), dtype=np.bool_)
+    steps = np.empty((m, H), dtype=np.int64)
+    for k in range(m):
+        d0, d1, d2 = directions[k, 0], directions[k, 1], directions[k, 2]
+        n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        for h in range(H):
+            owns[k, h] = small_sphere_owns(f, ix, h, d0 / n, d1 / n, d2 / n)
+            steps[k, h] = hull_vertex_step(f, ix, h, d0 / n, d1 / n, d2 / n)
+    return owns, steps

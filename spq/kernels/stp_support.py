@@ -3,8 +3,9 @@ direction, then take that sphere's or torus's support point (paper section III, 
 
 Layout (kind STP, see kinds.py):
 fdata = [r, R, rho, vertices (3V), face centres (3F), tori (7E: centre m, axis e, circle radius a),
-         record planes (4 per record: axis, cos), underlying-hull vertices (3H)]
-idata = [V, F, E, number of records, method, H, then offsets below (header of IDX_* entries),
+         record planes (4 per record: axis, cos), hull-vertex table (H rows of S records of
+         TABLE_RECORD), underlying-hull vertices (3H)]
+idata = [V, F, E, number of records, method, H, then offsets below, S (header of IDX_* entries),
          patch offsets (P + 1), records (2 per record: side, neighbour patch),
          hull vertex -> small sphere, underlying-hull polytope idata (to the end)]
 The underlying hull comes last in both arrays, so a robot scene can store it once, shared with the
@@ -16,6 +17,16 @@ patch, with opposite sides, so every direction has exactly one owner. The plane 
 record, next to its patch's others, rather than once: a region test then reads one contiguous run
 instead of a boundary index and a scattered boundary per record, a chain of cache misses that held
 most of the test's time.
+
+The hull-vertex table repeats, for each underlying-hull vertex h, its small sphere's records as
+(side * axis, side * cos, neighbour patch), padded to the body's largest count S with records
+(0, 0, 0, -1, -1) that every direction satisfies. A search on the hull ends on a hull vertex, and
+the certificates then ask whether its small sphere owns a direction (small_sphere_owns) or which
+torus it hands over to (hull_vertex_step): the table answers from one row found from h alone, where
+the records take three dependent reads (hull vertex -> small sphere -> its records -> their planes),
+three cache misses in a robot scene's all-pairs loop. The side is folded into the sign, which only
+moves a direction lying exactly on a boundary (g = 0) to the other patch, where the two patches'
+supports coincide.
 """
 
 from __future__ import annotations
@@ -33,8 +44,9 @@ METHOD_NAMES = ("naive", "march", "hull")
 
 # idata header
 IDX_V, IDX_F, IDX_E, IDX_NREC, IDX_METHOD, IDX_H = 0, 1, 2, 3, 4, 5
-IDX_PATCH_OFFSETS, IDX_RECORDS, IDX_HULL, IDX_HULL_MAP = 6, 7, 8, 9
-HEADER_SIZE = 10
+IDX_PATCH_OFFSETS, IDX_RECORDS, IDX_HULL, IDX_HULL_MAP, IDX_TABLE_STRIDE = 6, 7, 8, 9, 10
+HEADER_SIZE = 11
+TABLE_RECORD = 5  # floats per hull-vertex table record: side * axis (3), side * cos, neighbour patch
 # fdata offsets
 F_R, F_BIG_R, F_RHO, F_VERTICES = 0, 1, 2, 3
 
@@ -45,8 +57,47 @@ def _offsets(ix):
     o_faces = F_VERTICES + 3 * V
     o_tori = o_faces + 3 * F
     o_planes = o_tori + 7 * E
-    o_hull = o_planes + 4 * ix[IDX_NREC]
+    o_hull = _table_offset(ix) + TABLE_RECORD * ix[IDX_TABLE_STRIDE] * ix[IDX_H]
     return o_faces, o_tori, o_planes, o_hull
+
+
+@kernel(inline="always")
+def _table_offset(ix):
+    """Where the hull-vertex table starts in fdata."""
+    return F_VERTICES + 3 * (ix[IDX_V] + ix[IDX_F]) + 7 * ix[IDX_E] + 4 * ix[IDX_NREC]
+
+
+@kernel(inline="always")
+def small_sphere_owns(f, ix, h, u0, u1, u2):
+    """Whether the small sphere of underlying-hull vertex h owns unit direction u (local frame), from
+    the hull-vertex table (in_region's answer for that sphere, but at g = 0)."""
+    S = ix[IDX_TABLE_STRIDE]
+    k = _table_offset(ix) + TABLE_RECORD * S * h
+    for _ in range(S):
+        if f[k + 4] < 0.0:  # padding: the row's records are done
+            break
+        if u0 * f[k] + u1 * f[k + 1] + u2 * f[k + 2] - f[k + 3] < 0.0:
+            return False
+        k += TABLE_RECORD
+    return True
+
+
+@kernel
+def hull_vertex_step(f, ix, h, u0, u1, u2):
+    """march_step from the small sphere of underlying-hull vertex h, from the hull-vertex table: the
+    patch across its most violated boundary along unit u, or -1 if it owns u."""
+    S = ix[IDX_TABLE_STRIDE]
+    k = _table_offset(ix) + TABLE_RECORD * S * h
+    nxt = -1
+    worst = 0.0
+    for _ in range(S):
+        if f[k + 4] < 0.0:
+            break
+        viol = f[k + 3] - (u0 * f[k] + u1 * f[k + 1] + u2 * f[k + 2])
+        if viol > worst:
+            worst, nxt = viol, int(f[k + 4])
+        k += TABLE_RECORD
+    return nxt
 
 
 @kernel
@@ -204,7 +255,7 @@ def stp_support(f, ix, method, d0, d1, d2, start, out):
     return p
 
 
-@kernel
+@kernel(inline="always")
 def hull_core(k, m, f, ix):
     """(kind, margin, fdata, idata) of the shape to search first: for an STP-BV its underlying
     convex hull grown by r (a polytope, which the STP-BV contains and hugs within O(L^2 / rho));

@@ -78,9 +78,11 @@ def _phi_slope(a, dg, gg, pp, pq, qq, lam):
 
 
 @kernel
-def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2):
+def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2, guess):
     """Torus p's ball nearest to the segment s-t (local frame): (x, y), y the segment's point nearest
-    to the patch and x = y - the ball's centre, the circle point farthest from y.
+    to the patch and x = y - the ball's centre, the circle point farthest from y. guess: where on the
+    segment (parameter in (0, 1)) the Newton solve starts, e.g. where a search on the underlying
+    hull ended, next to the patch; the middle if it is outside.
 
     A torus patch lies in every ball of radius R centred on its circle, so its distance to a point
     y is that to the farthest circle point, minus R: sqrt(phi), phi(y) = |y - m|^2 + 2 a |w| + a^2
@@ -105,7 +107,7 @@ def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2):
         lam = 1.0
         if _phi_slope(a, dg, gg, pp, pq, qq, 1.0)[0] > 0.0:  # the minimum is inside: phi' = 0 there
             lo, hi = 0.0, 1.0
-            lam = 0.5
+            lam = guess if 0.0 < guess < 1.0 else 0.5
             for _ in range(SEGMENT_NEWTON_STEPS):
                 slope, curve = _phi_slope(a, dg, gg, pp, pq, qq, lam)
                 if slope > 0.0:

@@ -200,20 +200,38 @@ class STPBV(Shape):
             b = self.records[:, 0]
             planes = np.hstack([self.boundary_axes[b], self.boundary_cos[b, None]])  # each record's own copy
             hull_f = self.hull.vertices if self.hull is not None else np.zeros((0, 3))
+            table = self._hull_vertex_table()
             fdata = np.concatenate([[self.r, self.R, topo.rho], topo.vertices.ravel(), topo.face_centres.ravel(),
-                                    tori.ravel(), planes.ravel(), hull_f.ravel()])
+                                    tori.ravel(), planes.ravel(), table.ravel(), hull_f.ravel()])
             hull_i = self.hull.kernel_data().idata if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
             o_po = ks.HEADER_SIZE
             o_rec = o_po + len(self.patch_offsets)
             o_map = o_rec + 2 * len(self.records)
             o_hull = o_map + len(self.hull_to_small)
             header = [self.n_small, self.n_big, self.n_tori, len(self.records),
-                      ks.METHOD_NAMES.index(self._method), len(self.hull_to_small), o_po, o_rec, o_hull, o_map]
+                      ks.METHOD_NAMES.index(self._method), len(self.hull_to_small), o_po, o_rec, o_hull, o_map,
+                      table.shape[1] if table.size else 0]
             # the hull last in both arrays: a scene may then store it once for this body's PCH and STP-BV
             idata = np.concatenate([header, self.patch_offsets, self.records[:, 1:].ravel(), self.hull_to_small, hull_i])
             self._kernel = KernelData(kinds.STP, 0.0, np.ascontiguousarray(fdata, dtype=np.float64),
                                       np.ascontiguousarray(idata, dtype=kinds.IDATA_DTYPE))
         return self._kernel
+
+    def _hull_vertex_table(self) -> np.ndarray:
+        """(H, S, TABLE_RECORD): each hull vertex's small-sphere records as (side * axis, side * cos,
+        neighbour patch), padded to S with (0, 0, 0, -1, -1) (layout in spq.kernels.stp_support)."""
+        small = self.hull_to_small
+        counts = np.diff(self.patch_offsets)[small]
+        S = int(counts.max()) if len(small) else 0
+        table = np.zeros((len(small), S, ks.TABLE_RECORD))
+        table[:, :, 3:] = -1.0
+        for h, p in enumerate(small):
+            rec = self.records[self.patch_offsets[p]:self.patch_offsets[p + 1]]
+            side = rec[:, 1, None].astype(np.float64)
+            table[h, :len(rec), 0:3] = side * self.boundary_axes[rec[:, 0]]
+            table[h, :len(rec), 3] = side[:, 0] * self.boundary_cos[rec[:, 0]]
+            table[h, :len(rec), 4] = rec[:, 2]
+        return table
 
     def bounding_radius(self) -> float:
         topo = self.topology
