@@ -113,7 +113,13 @@ def test_torus_ball_against_a_segment_is_the_brute_force_nearest(link4):
         circle = m + a * (np.cos(angles)[:, None] * b1 + np.sin(angles)[:, None] * b2)
         for _ in range(4):
             s, t = m + rng.normal(size=3) * 0.3, m + rng.normal(size=3) * 0.3
-            x, y = np.split(np.array(torus_against_segment(kd.fdata, kd.idata, stp.n_small + stp.n_big + torus, *s, *t)), 2)
+            # the Newton solve's start (the middle, a random point, one outside the segment) must not matter
+            found = [np.array(torus_against_segment(kd.fdata, kd.idata, stp.n_small + stp.n_big + torus, *s, *t, g))
+                     for g in (0.5, rng.uniform(), 2.0)]
+            for other in found[1:]:  # the distance to first order; where on the segment, to the second
+                assert abs(np.linalg.norm(other[:3]) - np.linalg.norm(found[0][:3])) <= 1e-12
+                np.testing.assert_allclose(other[3:], found[0][3:], rtol=0, atol=1e-9)
+            x, y = np.split(found[1], 2)
             points = s + lam[:, None] * (t - s)
             far = np.linalg.norm(points[:, None, :] - circle[None], axis=2).max(axis=1)
             # no sampled segment point is nearer to the patch (1e-6: the circle's sampling error), and the

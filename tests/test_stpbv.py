@@ -204,24 +204,27 @@ def test_from_mesh_builds_the_same_stp_bv_as_the_mesh_vertices():
     np.testing.assert_array_equal(from_mesh.support(d), from_points.support(d))
 
 
-@pytest.mark.parametrize("name, r, R", [("kuka_link_4", 0.005, 2.0), ("panda_hand", 0.01, 0.2)])
-def test_the_hull_vertex_table_answers_as_the_small_spheres_own_records_and_the_brute_force(name, r, R):
-    """The table the certificates read from a hull vertex: ownership as the small sphere's own region
-    test, the march step as march_step's, and where it owns a direction the support is the vertex
-    plus r times it, by the brute force over Q."""
+@pytest.mark.parametrize("name, r, R, seed", [("kuka_link_4", 0.005, 2.0, 0), ("kuka_link_4", 0.004, 0.15, 1),
+                                                ("panda_hand", 0.01, 0.2, 2)])
+def test_the_hull_vertex_table_answers_as_the_small_spheres_own_records_and_the_brute_force(name, r, R, seed):
+    """The table the certificates read from a hull vertex: ownership as the naive scan's owner, the
+    march step towards a neighbour across a boundary, and where the sphere owns a direction the
+    support is the vertex plus r times it, by the brute force over Q (on 40 points of the link: the
+    brute force is cubic in them)."""
     from datasets import load_object
     from spq.kernels.stp_batch import hull_vertex_table_answers
 
     pts = load_object(name).vertices
+    pts = pts[np.random.default_rng(seed).choice(len(pts), 40, replace=False)]
     stp = STPBV.from_points(pts, r, R)
     kd = stp.kernel_data()
-    d = directions(3000, 3)
+    d = directions(2000, seed)
     u = unit(d)
     owns, steps = hull_vertex_table_answers(kd.fdata, kd.idata, np.ascontiguousarray(d))
     patches = stp.support_patches(d, method="naive")[1]
     small = stp.hull_to_small
     np.testing.assert_array_equal(owns, patches[:, None] == small[None, :])
-    assert owns.any(axis=1).mean() > 0.3  # the small spheres own a fair share at these radii
+    assert owns.any(axis=1).sum() >= 20  # enough owned directions for the brute force to check
     k, h = np.nonzero(owns)
     expected = brute_force_support_many(stp.topology.vertices, r, R, d[k])
     np.testing.assert_allclose(stp.hull.vertices[h] + r * u[k], expected, rtol=0, atol=1e-9)
