@@ -509,12 +509,12 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
     return status, k, v0, v1, v2, vv, lower, it
 
 
-# The same descent compiled inline, for the one call site where a call's cost shows: the search on
-# the hulls of an STP-BV pair in a robot scene's all-pairs loop (spq.kernels.query.gjk_query), where
+# The same descent, inlined into hot entry points (spq.kernels.jit) at the one call site where a
+# call's cost shows: the search on the hulls of an STP-BV pair (spq.kernels.query.gjk_query), where
 # passing nine arrays through the call cost 30 to 80 cycles of the 800 of a cold JVRC-1 query that the
 # hulls' simplex settles at once. Elsewhere the call stays, to keep the compiled code (and compile
 # time) small.
-descend_inline = kernel(inline="always")(descend.py_func)
+descend_inline = kernel(inline="hot")(descend.py_func)
 
 
 @kernel

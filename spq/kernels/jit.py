@@ -13,15 +13,35 @@ entry point that returns new arrays) says so with ``allocates=True`` and may cal
 not the other way round. Nor may code with NRT (a kernel with ``allocates=True``, or a user's own
 ``njit``) keep an array that a kernel without it returns (hull_core's views): it would release a
 reference it never took.
+
+Inlining a large kernel saves its call (a dozen arrays passed) but copies its code into every entry
+point that reaches it, and each copy is compiled again. ``inline="hot"`` inlines a kernel only into
+the entry points marked ``hot=True`` (a robot scene's all-pairs loop, where the calls' cost shows);
+everywhere else it stays a call, which keeps the other entry points' compile time down.
 """
 
 from numba import njit
 
+_HOT = "_spq_hot_kernel"
 
-def kernel(fn=None, *, allocates: bool = False, **options):
-    """``numba.njit`` with the project's options; use as ``@kernel``, ``@kernel(inline="always")`` or
-    ``@kernel(allocates=True)`` (for a kernel that creates arrays)."""
+
+def _into_hot_kernels(expr, caller_ir, callee_ir) -> bool:
+    """numba's inlining cost model for ``inline="hot"``: caller_ir is the entry point being compiled
+    (the whole chain of inlined kernels ends in it)."""
+    return getattr(caller_ir.func_id.func, _HOT, False)
+
+
+def kernel(fn=None, *, allocates: bool = False, hot: bool = False, **options):
+    """``numba.njit`` with the project's options; use as ``@kernel``, ``@kernel(inline="always")``,
+    ``@kernel(inline="hot")`` (inlined only into hot entry points), ``@kernel(hot=True)`` (an entry
+    point that takes them inline) or ``@kernel(allocates=True)`` (for a kernel that creates arrays)."""
+    if options.get("inline") == "hot":
+        options["inline"] = _into_hot_kernels
     opts = {"cache": True, "error_model": "numpy", "_nrt": bool(allocates), **options}
-    if fn is None:
-        return njit(**opts)
-    return njit(**opts)(fn)
+
+    def compile_(f):
+        if hot:
+            setattr(f, _HOT, True)
+        return njit(**opts)(f)
+
+    return compile_ if fn is None else compile_(fn)

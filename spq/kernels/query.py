@@ -278,7 +278,7 @@ def _owned_support(known, k, f, ix, p, u0, u1, u2, warm, slot, out):
     return _support_of_side(k, f, ix, p, u0, u1, u2, warm, slot, out)
 
 
-@kernel(inline="always")
+@kernel(inline="hot")
 def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known, out):
     """Whether the bodies' own supports along the unit normal m (A's frame, A to B) close the gap:
     upper = |p_B - p_A| for the witness points in out (a non-STP side's must be set, margin
@@ -644,7 +644,7 @@ def hull_vertex_of_simplex(ix, ids, count):
     return ids[0]
 
 
-@kernel(inline="always")
+@kernel(inline="hot")
 def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2, vv, tol_abs, tol_rel, warm, work,
                             scratch, fscratch, out):
     """Certify the loose search's result (simplex of k points in work, ids in scratch, closest point
@@ -685,15 +685,15 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
                           work[SUPPORT_ROW_B, 1] - grow_b * m1, work[SUPPORT_ROW_B, 2] - grow_b * m2, m0, m1, m2,
                           tol_abs, tol_rel, out):
             return False
+        # read only now, for the next query's warm start: the certificate did not wait for them
+        pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
+        pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
     else:
         pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
         pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
         if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
                         out):
             return False
-    # read only now, for the next query's warm start: the certificate does not wait for it
-    pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
-    pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
     if kA == STP:
         warm[0] = pa
     if kB == STP:
@@ -778,7 +778,7 @@ def _segment_of(P, lam, k):
     return True, s0, s1, s2, t0, t1, t2, w
 
 
-@kernel(inline="always")
+@kernel(inline="hot")
 def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel, warm, work, scratch, fscratch,
                       out):
     """Certify the distance of an STP-BV to a non-STP body whose side of the loose search's simplex

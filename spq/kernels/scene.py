@@ -55,7 +55,7 @@ def _sphere_gap(TA, ca, ra, TB, cb, rb):
     return math.sqrt(d2) - ra - rb
 
 
-@kernel
+@kernel(hot=True)  # the query's large kernels inlined (spq.kernels.jit): the robot scene's hot loop
 def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre,
                    slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out):
     """Every pair's query at the given slot world poses into out (npairs, OUT_SIZE), world frame.
