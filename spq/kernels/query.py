@@ -656,7 +656,7 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
     hull's support: the hull's distance is the STP-BV's. The bodies' supports along the normal
     certify it (this is the commonest case: small spheres own most of the directions at small r)."""
     count = scratch[WARM_COUNT]
-    pa = pb = ha = hb = -1
+    ha = hb = -1
     if kA == STP:
         ha = hull_vertex_of_simplex(iA, scratch[WARM_SIMPLEX_A:WARM_SIMPLEX_A + count], count)
         if ha < 0:
@@ -668,6 +668,8 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
     n = math.sqrt(vv)
     m0, m1, m2 = -v0 / n, -v1 / n, -v2 / n
     simplex_witnesses(work, k, mA * m0, mA * m1, mA * m2, -mB * m0, -mB * m1, -mB * m2, out)
+    pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
+    pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
     if work[FRESH_ROW, FRESH_COL] == 1.0:
         # the descent's last supports were along m: the hulls' (grown by r on an STP side, where the
         # small sphere's support is its centre, the hull vertex, plus r m if it owns m, which the
@@ -685,12 +687,7 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
                           work[SUPPORT_ROW_B, 1] - grow_b * m1, work[SUPPORT_ROW_B, 2] - grow_b * m2, m0, m1, m2,
                           tol_abs, tol_rel, out):
             return False
-        # read only now, for the next query's warm start: the certificate did not wait for them
-        pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
-        pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
     else:
-        pa = small_sphere_of_hull_vertex(iA, ha) if kA == STP else -1
-        pb = small_sphere_of_hull_vertex(iB, hb) if kB == STP else -1
         if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
                         out):
             return False
