@@ -34,6 +34,7 @@ from spq.kernels.gjk import (
     WARM_SIMPLEX_B,
     reduce_simplex,
 )
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POLYTOPE, STP
 from spq.kernels.stp_support import IDX_E, IDX_F, IDX_V, _offsets, ball_of_patch, march_step
@@ -64,9 +65,9 @@ def _rot_p_to_s(stp_a, R, x0, x1, x2):
 @kernel(inline="always")
 def _put_vertex(fP, v, c0, c1, c2, W, FI, k):
     """Row k of the simplex of (polytope - centre c): vertex v minus c, id v."""
-    W[k, 0] = fP[3 * v] - c0
-    W[k, 1] = fP[3 * v + 1] - c1
-    W[k, 2] = fP[3 * v + 2] - c2
+    W[k, 0] = fP[at(3 * v)] - c0
+    W[k, 1] = fP[at(3 * v + 1)] - c1
+    W[k, 2] = fP[at(3 * v + 2)] - c2
     FI[0, k] = v
     FI[1, k] = 0
 
@@ -100,7 +101,8 @@ def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel, max_iter, w
         if inside or not (core - rad - mP > tol_abs):
             break
         s = polytope_support_index(fP, iP, -v0, -v1, -v2)
-        gap = v0 * (v0 - (fP[3 * s] - c0)) + v1 * (v1 - (fP[3 * s + 1] - c1)) + v2 * (v2 - (fP[3 * s + 2] - c2))
+        gap = (v0 * (v0 - (fP[at(3 * s)] - c0)) + v1 * (v1 - (fP[at(3 * s + 1)] - c1))
+               + v2 * (v2 - (fP[at(3 * s + 2)] - c2)))
         if gap <= (tol_abs + tol_rel * (core - rad - mP)) * core:
             return True, k, v0, v1, v2, core, s, it
         for i in range(k):
@@ -118,13 +120,13 @@ def _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, u0, u1
     as the face's normal towards it); c: the current centre."""
     if k == 1:
         v = int(FI[0, 0])
-        q0, q1, q2 = _p_to_s(stp_a, R, t, fP[3 * v], fP[3 * v + 1], fP[3 * v + 2])
+        q0, q1, q2 = _p_to_s(stp_a, R, t, fP[at(3 * v)], fP[at(3 * v + 1)], fP[at(3 * v + 2)])
         d0, d1, d2 = _p_to_s(stp_a, R, t, c0, c1, c2)
         x0, x1, x2 = far_ball_centre(fS, iS, patch, d0, d1, d2, q0, q1, q2)
     elif k == 2:
         v, w = int(FI[0, 0]), int(FI[0, 1])
-        s0, s1, s2 = _p_to_s(stp_a, R, t, fP[3 * v], fP[3 * v + 1], fP[3 * v + 2])
-        e0, e1, e2 = _p_to_s(stp_a, R, t, fP[3 * w], fP[3 * w + 1], fP[3 * w + 2])
+        s0, s1, s2 = _p_to_s(stp_a, R, t, fP[at(3 * v)], fP[at(3 * v + 1)], fP[at(3 * v + 2)])
+        e0, e1, e2 = _p_to_s(stp_a, R, t, fP[at(3 * w)], fP[at(3 * w + 1)], fP[at(3 * w + 2)])
         g0, g1, g2, y0, y1, y2 = torus_against_segment(fS, iS, patch, s0, s1, s2, e0, e1, e2, 0.5)
         x0, x1, x2 = y0 - g0, y1 - g1, y2 - g2
     else:
@@ -253,7 +255,7 @@ def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel,
     a0, a1, a2 = c0 + v0 + mP * m0, c1 + v1 + mP * m1, c2 + v2 + mP * m2  # the polytope's witness
     g0, g1, g2 = b0 - a0, b1 - a1, b2 - a2
     upper = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-    slab = m0 * (b0 - fP[3 * s]) + m1 * (b1 - fP[3 * s + 1]) + m2 * (b2 - fP[3 * s + 2]) - mP
+    slab = m0 * (b0 - fP[at(3 * s)]) + m1 * (b1 - fP[at(3 * s + 1)]) + m2 * (b2 - fP[at(3 * s + 2)]) - mP
     if not (slab > 0.0 and upper - slab <= tol_abs + tol_rel * upper):
         return -1
     g0, g1, g2 = g0 / upper, g1 / upper, g2 / upper  # polytope to STP side

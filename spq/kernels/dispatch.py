@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import BOX, POLYTOPE, SEGMENT, STP, SUPERELLIPSOID
 from spq.kernels.stp_support import IDX_METHOD, stp_support
@@ -30,9 +31,9 @@ def support_local(kind, f, ix, d0, d1, d2, warm, out):
     """
     if kind == POLYTOPE:
         i = polytope_support_index(f, ix, d0, d1, d2)
-        out[0] = f[3 * i]
-        out[1] = f[3 * i + 1]
-        out[2] = f[3 * i + 2]
+        out[0] = f[at(3 * i)]
+        out[1] = f[at(3 * i + 1)]
+        out[2] = f[at(3 * i + 2)]
         return i
     if kind == BOX:
         out[0] = _sign_half(f[0], d0)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 
 from spq.kernels.kinds import POINT, POLYTOPE
@@ -265,13 +266,14 @@ def reduce_simplex(W, PA, PB, FI, k, lam, scratch):
     for i in range(k):
         if mask & (1 << i):
             if n != i:
+                r = at(n)
                 for c in range(3):
-                    W[n, c] = W[i, c]
-                    PA[n, c] = PA[i, c]
-                    PB[n, c] = PB[i, c]
-                FI[0, n] = FI[0, i]
-                FI[1, n] = FI[1, i]
-                lam[n] = lam[i]
+                    W[r, c] = W[i, c]
+                    PA[r, c] = PA[i, c]
+                    PB[r, c] = PB[i, c]
+                FI[0, r] = FI[0, i]
+                FI[1, r] = FI[1, i]
+                lam[r] = lam[i]
             n += 1
     return n, inside
 
@@ -294,12 +296,13 @@ def minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tm
 
 @kernel(inline="always")
 def _push(W, PA, PB, FI, k, pa, pb, warm):
+    r = at(k)
     for c in range(3):
-        PA[k, c] = pa[c]
-        PB[k, c] = pb[c]
-        W[k, c] = pa[c] - pb[c]
-    FI[0, k] = warm[WARM_FEATURE_A]
-    FI[1, k] = warm[WARM_FEATURE_B]
+        PA[r, c] = pa[c]
+        PB[r, c] = pb[c]
+        W[r, c] = pa[c] - pb[c]
+    FI[0, r] = warm[WARM_FEATURE_A]
+    FI[1, r] = warm[WARM_FEATURE_B]
 
 
 @kernel(inline="always")
@@ -311,7 +314,7 @@ def rebuildable(kind):
 @kernel
 def _corner(kind, f, i, c):
     """Coordinate c of feature i of a rebuildable core (local frame): a vertex, or the origin."""
-    return f[3 * i + c] if kind == POLYTOPE else 0.0
+    return f[at(3 * i + c)] if kind == POLYTOPE else 0.0
 
 
 @kernel

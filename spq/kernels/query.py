@@ -73,6 +73,7 @@ from spq.kernels.signed import (
     set_result,
 )
 from spq.kernels.superellipsoid_support import FDATA_SIZE
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE, STP
 from spq.kernels.frames import rot_to_a, rot_to_b, to_a, to_b
@@ -146,14 +147,14 @@ def small_sphere_of_hull_vertex(ix, h):
     """The small sphere of underlying-hull vertex h, or -1 if there is no such vertex."""
     if h < 0 or h >= ix[IDX_H]:
         return -1
-    return ix[ix[IDX_HULL_MAP] + h]
+    return ix[at(ix[IDX_HULL_MAP] + h)]
 
 
 @kernel
 def _torus_frame(f, ix, p):
     """Axis e and two unit vectors b1, b2 completing it to an orthonormal frame, of torus patch p."""
     k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
-    e0, e1, e2 = f[k + 3], f[k + 4], f[k + 5]
+    e0, e1, e2 = f[at(k + 3)], f[at(k + 4)], f[at(k + 5)]
     if abs(e0) < 0.9:  # b1 = e x (1, 0, 0)
         b0, b1, b2 = 0.0, e2, -e1
     else:  # b1 = e x (0, 1, 0)
@@ -730,7 +731,7 @@ def march_to_feature(f, ix, h, s0, s1, s2, t0, t1, t2, guess):
     The first step is the hull vertex's: its small sphere is centred on the vertex, which the search
     on the hull has just read, and its region is in the hull-vertex table."""
     o_planes, o_hull = _offsets(ix)[2:]
-    c0, c1, c2 = f[o_hull + 3 * h], f[o_hull + 3 * h + 1], f[o_hull + 3 * h + 2]
+    c0, c1, c2 = f[at(o_hull + 3 * h)], f[at(o_hull + 3 * h + 1)], f[at(o_hull + 3 * h + 2)]
     y0, y1, y2 = _closest_on_segment(s0, s1, s2, t0, t1, t2, c0, c1, c2)
     x0, x1, x2 = y0 - c0, y1 - c1, y2 - c2
     xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)

@@ -27,6 +27,7 @@ from spq.kernels.batch import (
     posed_query,
 )
 from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_STATUS
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinematics import forward_kinematics
 
@@ -64,8 +65,8 @@ def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpoo
     prune > 0: skip (status PRUNED, distance inf, lower bound = sphere gap) the pairs whose bounding
     spheres are more than prune apart."""
     for p in range(pair_slots.shape[0]):
-        sa = pair_slots[p, 0]
-        sb = pair_slots[p, 1]
+        sa = at(pair_slots[p, 0])
+        sb = at(pair_slots[p, 1])
         TA = poses[sa]
         TB = poses[sb]
         row = out[p]

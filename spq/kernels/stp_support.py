@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POLYTOPE, STP
 from spq.kernels.support import polytope_support_index
@@ -74,9 +75,9 @@ def small_sphere_owns(f, ix, h, u0, u1, u2):
     S = ix[IDX_TABLE_STRIDE]
     k = _table_offset(ix) + TABLE_RECORD * S * h
     for _ in range(S):
-        if f[k + 4] < 0.0:  # padding: the row's records are done
+        if f[at(k + 4)] < 0.0:  # padding: the row's records are done
             break
-        if u0 * f[k] + u1 * f[k + 1] + u2 * f[k + 2] - f[k + 3] < 0.0:
+        if u0 * f[at(k)] + u1 * f[at(k + 1)] + u2 * f[at(k + 2)] - f[at(k + 3)] < 0.0:
             return False
         k += TABLE_RECORD
     return True
@@ -91,11 +92,11 @@ def hull_vertex_step(f, ix, h, u0, u1, u2):
     nxt = -1
     worst = 0.0
     for _ in range(S):
-        if f[k + 4] < 0.0:
+        if f[at(k + 4)] < 0.0:
             break
-        viol = f[k + 3] - (u0 * f[k] + u1 * f[k + 1] + u2 * f[k + 2])
+        viol = f[at(k + 3)] - (u0 * f[at(k)] + u1 * f[at(k + 1)] + u2 * f[at(k + 2)])
         if viol > worst:
-            worst, nxt = viol, int(f[k + 4])
+            worst, nxt = viol, int(f[at(k + 4)])
         k += TABLE_RECORD
     return nxt
 
@@ -103,9 +104,9 @@ def hull_vertex_step(f, ix, h, u0, u1, u2):
 @kernel
 def record_violation(f, ix, o_planes, rec, u0, u1, u2):
     """How far unit direction u is on the wrong side of record rec (<= 0: on its patch's side)."""
-    side = ix[ix[IDX_RECORDS] + 2 * rec]
+    side = ix[at(ix[IDX_RECORDS] + 2 * rec)]
     k = o_planes + 4 * rec
-    g = u0 * f[k] + u1 * f[k + 1] + u2 * f[k + 2] - f[k + 3]
+    g = u0 * f[at(k)] + u1 * f[at(k + 1)] + u2 * f[at(k + 2)] - f[at(k + 3)]
     if side > 0:
         return -g  # inside when g >= 0
     # inside when g < 0: g == 0 belongs to the other patch, so it counts as a (zero) violation
@@ -116,7 +117,7 @@ def record_violation(f, ix, o_planes, rec, u0, u1, u2):
 def in_region(f, ix, o_planes, p, u0, u1, u2):
     """True if unit direction u is in patch p's VVR."""
     po = ix[IDX_PATCH_OFFSETS]
-    for rec in range(ix[po + p], ix[po + p + 1]):
+    for rec in range(ix[at(po + p)], ix[at(po + p + 1)]):
         if record_violation(f, ix, o_planes, rec, u0, u1, u2) > 0.0:
             return False
     return True
@@ -130,7 +131,7 @@ def find_naive(f, ix, o_planes, u0, u1, u2):
     best, best_viol = 0, math.inf
     for p in range(P):
         worst = 0.0
-        for rec in range(ix[po + p], ix[po + p + 1]):
+        for rec in range(ix[at(po + p)], ix[at(po + p + 1)]):
             worst = max(worst, record_violation(f, ix, o_planes, rec, u0, u1, u2))
         if worst <= 0.0:
             return p
@@ -150,11 +151,11 @@ def march_step(f, ix, o_planes, p, u0, u1, u2):
     nxt = -1
     worst = 0.0
     is_torus = p >= V + F
-    for rec in range(ix[po + p], ix[po + p + 1]):
+    for rec in range(ix[at(po + p)], ix[at(po + p + 1)]):
         viol = record_violation(f, ix, o_planes, rec, u0, u1, u2)
         if viol <= 0.0:
             continue
-        q = ix[ix[IDX_RECORDS] + 2 * rec + 1]
+        q = ix[at(ix[IDX_RECORDS] + 2 * rec + 1)]
         if p < V:
             if viol > worst:
                 worst, nxt = viol, q
@@ -196,7 +197,7 @@ def find_hull(f, ix, o_planes, o_hull, start, u0, u1, u2):
     hull_f = f[o_hull:o_hull + 3 * H]
     hull_ix = ix[ix[IDX_HULL]:ix.shape[0]]
     h = polytope_support_index(hull_f, hull_ix, u0, u1, u2)
-    p, steps = find_march(f, ix, o_planes, ix[ix[IDX_HULL_MAP] + h], u0, u1, u2)
+    p, steps = find_march(f, ix, o_planes, ix[at(ix[IDX_HULL_MAP] + h)], u0, u1, u2)
     return p, steps + 1
 
 
@@ -220,18 +221,18 @@ def ball_of_patch(f, ix, p, d0, d1, d2):
     o_faces, o_tori, o_planes, o_hull = _offsets(ix)
     if p < V:
         k = F_VERTICES + 3 * p
-        return f[k], f[k + 1], f[k + 2], f[F_R]
+        return f[at(k)], f[at(k + 1)], f[at(k + 2)], f[F_R]
     if p < V + F:
         k = o_faces + 3 * (p - V)
-        return f[k], f[k + 1], f[k + 2], f[F_BIG_R]
+        return f[at(k)], f[at(k + 1)], f[at(k + 2)], f[F_BIG_R]
     k = o_tori + 7 * (p - V - F)
-    e0, e1, e2, a = f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+    e0, e1, e2, a = f[at(k + 3)], f[at(k + 4)], f[at(k + 5)], f[at(k + 6)]
     de = d0 * e0 + d1 * e1 + d2 * e2
     w0, w1, w2 = d0 - de * e0, d1 - de * e1, d2 - de * e2
     wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     if wn > 0.0:
         w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
-    return f[k] - a * w0, f[k + 1] - a * w1, f[k + 2] - a * w2, f[F_BIG_R]
+    return f[at(k)] - a * w0, f[at(k + 1)] - a * w1, f[at(k + 2)] - a * w2, f[F_BIG_R]
 
 
 @kernel

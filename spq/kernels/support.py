@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 
 CELL_SLOTS = 4  # candidates stored in a cell's own slots (94% of the cells of JVRC-1's link hulls have at most 4)
@@ -26,7 +27,7 @@ CELL_SLOTS = 4  # candidates stored in a cell's own slots (94% of the cells of J
 
 @kernel(inline="always")
 def _vertex_dot(f, i, d0, d1, d2):
-    return f[3 * i] * d0 + f[3 * i + 1] * d1 + f[3 * i + 2] * d2
+    return f[at(3 * i)] * d0 + f[at(3 * i + 1)] * d1 + f[at(3 * i + 2)] * d2
 
 
 @kernel(inline="always")
@@ -185,10 +186,10 @@ def cube_map_idata(n_vertices: int, G: int, offsets: np.ndarray, candidates: np.
 @kernel(inline="always")
 def _best_candidate(f, ix, a, b, d0, d1, d2):
     """The first of the vertex ids ix[a:b] that maximises d.x."""
-    best = ix[a]
+    best = ix[at(a)]
     best_val = _vertex_dot(f, best, d0, d1, d2)
     for k in range(a + 1, b):
-        j = ix[k]
+        j = ix[at(k)]
         val = _vertex_dot(f, j, d0, d1, d2)
         if val > best_val:
             best_val = val
@@ -200,7 +201,7 @@ def _best_candidate(f, ix, a, b, d0, d1, d2):
 def polytope_support_index(f, ix, d0, d1, d2):
     """Index of the vertex maximising d.x: the best of d's cube-map cell's candidates (layout in kinds)."""
     c = ix[2] + CELL_SLOTS * cube_cell(d0, d1, d2, ix[1])
-    first = ix[c]
+    first = ix[at(c)]
     if first < 0:  # more candidates than slots: the cell's list lies further on
-        return _best_candidate(f, ix, -1 - first, -1 - first + ix[c + 1], d0, d1, d2)
+        return _best_candidate(f, ix, -1 - first, -1 - first + ix[at(c + 1)], d0, d1, d2)
     return _best_candidate(f, ix, c, c + CELL_SLOTS, d0, d1, d2)

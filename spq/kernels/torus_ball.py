@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.stp_support import IDX_F, IDX_V, _offsets
 
@@ -21,7 +22,8 @@ def _circle_point(f, ix, p, x0, x1, x2, side):
     """The point of torus p's centre circle in the direction of x (side 1) or opposite it (side -1),
     seen from the circle's centre in its plane; (False, 0, 0, 0) if x is on the axis."""
     k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
-    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+    m0, m1, m2 = f[at(k)], f[at(k + 1)], f[at(k + 2)]
+    e0, e1, e2, a = f[at(k + 3)], f[at(k + 4)], f[at(k + 5)], f[at(k + 6)]
     w0, w1, w2 = x0 - m0, x1 - m1, x2 - m2
     we = w0 * e0 + w1 * e1 + w2 * e2
     w0, w1, w2 = w0 - we * e0, w1 - we * e1, w2 - we * e2
@@ -90,7 +92,8 @@ def torus_against_segment(f, ix, p, s0, s1, s2, t0, t1, t2, guess):
     the segment, so its minimum there is found by Newton steps on the segment parameter, kept in a
     bracket where phi' changes sign (bisection when a step leaves it)."""
     k = _offsets(ix)[1] + 7 * (p - ix[IDX_V] - ix[IDX_F])
-    m0, m1, m2, e0, e1, e2, a = f[k], f[k + 1], f[k + 2], f[k + 3], f[k + 4], f[k + 5], f[k + 6]
+    m0, m1, m2 = f[at(k)], f[at(k + 1)], f[at(k + 2)]
+    e0, e1, e2, a = f[at(k + 3)], f[at(k + 4)], f[at(k + 5)], f[at(k + 6)]
     d0, d1, d2 = s0 - m0, s1 - m1, s2 - m2
     g0, g1, g2 = t0 - s0, t1 - s1, t2 - s2
     de = d0 * e0 + d1 * e1 + d2 * e2
