@@ -6,8 +6,8 @@ adds the array's length where the index is negative: two or three more instructi
 kernels never index from the end, so their data-dependent reads in the hot loops take the index as
 unsigned, for which numba emits no such fix-up. On JVRC-1's all-pairs loop, cold, that is 4% of the
 time from the polytope support's reads alone, and 5 to 6% (auto) and 4% (pch) from the reads that
-use it (same-process A/B, bit-identical results). Compute the index as a signed int, then convert at the read: arithmetic that
-mixes numba's unsigned and signed ints gives a float.
+use it (same-process A/B, bit-identical results). Compute the index as a signed int, then convert
+at the read: arithmetic that mixes numba's unsigned and signed ints gives a float.
 """
 
 from __future__ import annotations
