@@ -24,6 +24,7 @@ from spq.kernels.gjk import (
     WARM_COUNT,
     WARM_SIZE,
     WORK_ROWS,
+    clear_warm,
 )
 from spq.kernels.query import gjk_query
 
@@ -181,12 +182,8 @@ def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, R, t, work, iwor
     if coherent:
         keep_simplex_if_coherent(R, t, floats, warm)
     else:
-        # constant-length stores, not a slice fill: that is a call to libc's memset, whose masked
-        # stores (a fill of under 32 bytes) no later load can take its value from before they are
-        # written out, and gjk_query reads d at once (about 3% of a cold robot-scene sweep)
-        for i in range(WARM_SIZE):
-            warm[i] = 0
-        d[0] = d[1] = d[2] = 0.0
+        clear_warm(warm)
+        d[0] = d[1] = d[2] = 0.0  # not d[:] = 0.0, a call to memset (see clear_warm)
     signed = ints[I_SIGNED] != 0
     gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
               floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, floats[F_CENTRES:F_CENTRES + 6], warm, iwork,

@@ -67,6 +67,16 @@ EPA_IOFF = 2 * WARM_SIZE  # int64 scratch of gjk_query: the STP search's simplex
 IWORK_SIZE = EPA_IOFF + EPA_INT_SIZE  # then a signed query's polytope (spq.kernels.epa_layout)
 
 
+@kernel(inline="always")
+def clear_warm(warm):
+    """Zero a warm-start state (WARM_SIZE entries) with stores of constant length. A slice fill,
+    warm[:] = 0, is a call to libc's memset, whose masked stores (for a fill under 32 bytes) no
+    later load can take its value from before they are written out: the query's first reads of
+    its state then wait (about 3% of a cold robot-scene sweep, perf)."""
+    for i in range(WARM_SIZE):
+        warm[i] = 0
+
+
 # ------------------------------------------------------------------------------------------
 # closest point of a simplex to the origin
 # ------------------------------------------------------------------------------------------

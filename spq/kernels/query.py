@@ -50,6 +50,7 @@ from spq.kernels.gjk import (
     TOUCHING,
     _finish,
     certify_overlap,
+    clear_warm,
     descend,
     descend_inline,
     minkowski_support,
@@ -865,8 +866,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
             if used >= 0:
                 return _done(out, used, dir_io)
         scratch = iwork[0:WARM_SIZE]
-        for i in range(WARM_SIZE):  # a constant length: inline stores, not a call to memset (posed_query)
-            scratch[i] = 0
+        clear_warm(scratch)
         fscratch = work[DESCENT_ROWS:PROBE_ROW]
         if n > 0.0 and not overlapped:
             used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
@@ -880,8 +880,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
             for i in range(WARM_SIZE):
                 scratch[i] = warm[i]
         else:
-            for i in range(WARM_SIZE):
-                scratch[i] = 0
+            clear_warm(scratch)
         if n == 0.0:
             cold_direction(R, t, centres, dir_io)
         loose = LOOSE_REL_TOL_ONE_STP if (kA == STP) != (kB == STP) else LOOSE_REL_TOL
