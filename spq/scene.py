@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spq.kernels import jacobian as kjac
 from spq.kernels import scene as kscene
 from spq.kernels.batch import query_scratch
 from spq.kernels.kinds import IDATA_DTYPE, POLYTOPE, STP
@@ -60,6 +61,7 @@ BV_KINDS = ("pch", "stp", "cse")
 DEFAULT_R_SMALL = 0.005  # m: r of the STP-BVs (Table I's value)
 DEFAULT_R_BIG = 2.0  # m: R of the STP-BVs
 PRUNED_STATUS = "pruned"
+WORLD = -1  # Body.link of a static obstacle: fixed in the world frame, not on any link
 PRIMITIVE_MODES = ("hull", "exact")  # how Scene.from_urdf / from_model turn URDF boxes, spheres and capsules into bodies
 
 
@@ -113,6 +115,37 @@ class Body:
 
 
 @dataclass(eq=False)
+class Obstacle:
+    """A static obstacle fixed in the world (a table, a wall, a shelf board).
+
+    name: unique among the scene's bodies; shape: a Polyhedron (any convex hull, e.g.
+    ``Polyhedron.from_points``) or an exact Box, Sphere or Capsule (spq.shapes.primitives), in its own
+    frame (m); pose: 4x4 world pose of that frame. In a scene it becomes a body with ``link == WORLD``
+    under the scene's policy, paired with every robot body and with no other obstacle."""
+
+    name: str
+    shape: object
+    pose: np.ndarray
+
+    def body(self, policy: str) -> Body:
+        """This obstacle as a scene body (its hull, and the exact primitive where it is one)."""
+        pose = as_pose(self.pose, f"obstacle {self.name!r} pose")
+        if isinstance(self.shape, Polyhedron):
+            return Body(self.name, WORLD, pose, self.shape, policy, source="obstacle")
+        if isinstance(self.shape, Box):
+            geom = PrimitiveGeometry("box", 2.0 * self.shape.half_extents, np.eye(4))
+        elif isinstance(self.shape, Sphere):
+            geom = PrimitiveGeometry("sphere", np.array([self.shape.radius]), np.eye(4))
+        elif isinstance(self.shape, Capsule):
+            geom = PrimitiveGeometry("capsule", np.array([self.shape.radius, 2.0 * self.shape.half_length]), np.eye(4))
+        else:
+            raise ValueError(f"obstacle {self.name!r}: shape must be a Polyhedron, Box, Sphere or Capsule; got "
+                             f"{type(self.shape).__name__}")
+        return Body(self.name, WORLD, pose, _primitive_hull(geom), policy, source=f"obstacle {geom.kind}",
+                    shape=self.shape)
+
+
+@dataclass(eq=False)
 class SceneDistances:
     """Every queried pair's result for one configuration (world frame, metres).
 
@@ -131,6 +164,7 @@ class SceneDistances:
     lower_bound: np.ndarray
     pruned: np.ndarray = field(default=None)
     upper_bound: np.ndarray = field(default=None)
+    jacobian: np.ndarray | None = field(default=None)
 
     @classmethod
     def from_out(cls, pairs: np.ndarray, out: np.ndarray) -> "SceneDistances":
@@ -178,18 +212,32 @@ class Scene:
     skip : iterable of (name, name)
         More body pairs to skip.
     base : 4x4
-        World pose of the root link.
+        World pose of the root link's parent frame (see :meth:`set_base`).
     tol, rel_tol, max_iter : GJK stopping rule, as in :func:`spq.distance`.
+    obstacles : iterable of Obstacle
+        Static obstacles fixed in the world, each paired with every robot body (not with each other).
+        They join ``bodies`` (link ``WORLD``), under the scene's policy.
+    floating_base : bool
+        Whether distance Jacobians carry the base's six columns in front of the joints' (the base's
+        twist in the world frame: the velocity v of its origin, then its angular velocity ω). The base
+        pose itself stays ``base``; q holds the joints only.
     """
 
     def __init__(self, model: RobotModel, bodies: list[Body], policy: str = "auto", r: float = DEFAULT_R_SMALL,
                  R: float = DEFAULT_R_BIG, skip_adjacent: bool = True, skip=(), base=None,
-                 tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL, max_iter: int = DEFAULT_MAX_ITER):
+                 tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL, max_iter: int = DEFAULT_MAX_ITER,
+                 obstacles=(), floating_base: bool = False):
         check_policy(policy, SCENE_POLICIES, "scene policy")
         self.model = model
-        self.bodies = list(bodies)
+        default = "stp" if policy == "stp-both" else policy
+        self.bodies = list(bodies) + [_as_obstacle(o).body(default) for o in obstacles]
         if not self.bodies:
             raise ValueError("a scene needs at least one body")
+        for b in self.bodies:
+            if b.link != WORLD and not 0 <= b.link < model.nlinks:
+                raise ValueError(f"body {b.name!r}: link {b.link} is not a link of the model (0 to "
+                                 f"{model.nlinks - 1}, or WORLD = {WORLD} for an obstacle)")
+        self.floating_base = bool(floating_base)
         names = [b.name for b in self.bodies]
         if len(set(names)) != len(names):
             raise ValueError(f"body names must be unique; got {names}")
@@ -211,7 +259,7 @@ class Scene:
     # --- construction ---------------------------------------------------------------------------
     @classmethod
     def from_urdf(cls, urdf_path, convex_dir=None, mesh_root=None, policy: str = "auto", policies=None,
-                  primitives: str = "hull", **options) -> "Scene":
+                  primitives: str = "hull", srdf=None, **options) -> "Scene":
         """A scene from a URDF: one body per geometry of each link (collision, else visual).
 
         convex_dir: a directory of qhull ``o f`` hulls named ``NAME-ch.txt`` after each mesh file
@@ -231,11 +279,12 @@ class Scene:
         check_policy(policy, SCENE_POLICIES, "scene policy")
         model = read_urdf(urdf_path)
         return cls.from_model(model, Path(urdf_path).resolve().parent, convex_dir, mesh_root, policy, policies,
-                              primitives, **options)
+                              primitives, srdf=srdf, **options)
 
     @classmethod
     def from_model(cls, model: RobotModel, urdf_dir=None, convex_dir=None, mesh_root=None, policy: str = "auto",
-                   policies=None, primitives: str = "hull", hull_cache: dict | None = None, **options) -> "Scene":
+                   policies=None, primitives: str = "hull", hull_cache: dict | None = None, srdf=None,
+                   **options) -> "Scene":
         """:meth:`from_urdf` for a RobotModel already read (or edited: mesh filenames made absolute,
         geometry replaced). urdf_dir: the folder relative mesh filenames resolve against (default:
         the folder of ``model.source``, else the working directory). hull_cache: a dict kept between
@@ -272,6 +321,13 @@ class Scene:
             raise ValueError(f"policies name unknown bodies {sorted(unknown)}; bodies: {[b.name for b in bodies]}")
         for b in bodies:
             b.policy = check_policy(policies.get(b.name, b.policy))
+        if srdf is not None:
+            from spq.collision_pairs import skip_pairs
+            from spq.io.srdf import read_srdf
+
+            disabled = [(a, b) for a, b, _ in read_srdf(srdf)]
+            named = [(b.name, model.link_names[b.link]) for b in bodies]
+            options["skip"] = list(options.get("skip", ())) + list(skip_pairs(named, disabled))
         return cls(model, bodies, policy=policy, **options)
 
     def with_policy(self, policy: str) -> "Scene":
@@ -285,7 +341,8 @@ class Scene:
                        shape=b.shape) for b in self.bodies]
         tol, rel_tol, max_iter = self._tol
         return type(self)(self.model, bodies, policy=policy, r=self.r, R=self.R, skip_adjacent=self._skip_adjacent,
-                          skip=self._skip, base=self.base, tol=tol, rel_tol=rel_tol, max_iter=max_iter)
+                          skip=self._skip, base=self.base, tol=tol, rel_tol=rel_tol, max_iter=max_iter,
+                          floating_base=self.floating_base)
 
     def _build_volumes(self) -> None:
         built = {}  # id(hull) -> STP-BV: bodies that share a hull object (repeated meshes) share its STP-BV
@@ -307,7 +364,7 @@ class Scene:
 
     def _adjacent_links(self) -> set[tuple[int, int]]:
         """(link, nearest ancestor link with a body) pairs, both orders."""
-        has_body = {b.link for b in self.bodies}
+        has_body = {b.link for b in self.bodies if b.link != WORLD}
         out = set()
         for link in has_body:
             a = self.model.parent[link]
@@ -334,7 +391,7 @@ class Scene:
         for i, a in enumerate(self.bodies):
             for j in range(i + 1, len(self.bodies)):
                 b = self.bodies[j]
-                if (i, j) in skipped:
+                if (i, j) in skipped or (a.link == WORLD and b.link == WORLD):
                     continue
                 if skip_adjacent and (a.link == b.link or (a.link, b.link) in adjacent):
                     continue
@@ -394,7 +451,9 @@ class Scene:
             centre.append(c)
             radius.append(rad)
         ns = len(keys)
-        self._slot_link = np.array([self.bodies[bi].link for bi, _ in keys], dtype=np.int64)
+        # an obstacle's slot rides on the world: the row after the links in the link-pose scratch (identity)
+        self._slot_link = np.array([self.model.nlinks if self.bodies[bi].link == WORLD else self.bodies[bi].link
+                                    for bi, _ in keys], dtype=np.int64)
         self._slot_offset = np.ascontiguousarray(
             np.array([self.bodies[bi].offset @ local for (bi, _), (_, local) in zip(keys, shapes)],
                      dtype=np.float64).reshape(ns, 4, 4))
@@ -487,8 +546,60 @@ class Scene:
                                self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin,
                                self._slot_frange, self._slot_irange, self._fpool, self._ipool, self._slot_centre,
                                self._slot_radius, self._pair_slots, pair_ints, pair_floats,
-                               bool(coherent), float(prune), np.empty((m.nlinks, 4, 4)),
+                               bool(coherent), float(prune), self._link_scratch(),
                                np.empty((len(self._slot_link), 4, 4)), *query_scratch(), out)
+
+    def _link_scratch(self) -> np.ndarray:
+        """(nlinks + 1, 4, 4) scratch for the link poses; the last row, the world's pose, is the identity
+        (forward kinematics writes the links' rows only)."""
+        links = np.empty((self.model.nlinks + 1, 4, 4))
+        links[-1] = np.eye(4)
+        return links
+
+    @property
+    def nv(self) -> int:
+        """Columns of a distance Jacobian: the joints, after the base's six with a floating base."""
+        return self.model.ndof + (kjac.BASE_COLUMNS if self.floating_base else 0)
+
+    def set_base(self, base) -> None:
+        """Move the robot's base: ``base`` (4x4) is the world pose of the root link's parent frame."""
+        self.base = as_pose(base, "base")
+
+    def _jacobians(self, qs: np.ndarray, out: np.ndarray, signed: bool, jac: np.ndarray | None = None) -> np.ndarray:
+        """Rows ∂d/∂q (N, npairs, nv) of results ``out`` (N, npairs, OUT_SIZE) at configurations qs."""
+        m = self.model
+        shape = (len(qs), len(self.pairs), self.nv)
+        if jac is None:
+            jac = np.empty(shape)
+        elif (not isinstance(jac, np.ndarray) or jac.shape != shape or jac.dtype != np.float64
+              or not jac.flags.c_contiguous or not jac.flags.writeable):
+            raise ValueError(f"jac_out must be a writeable C-contiguous float64 array of shape {shape}")
+        kjac.scene_jacobians(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
+                             m.q_offset, self.base, self.floating_base, qs, self._slot_link, self._pair_slots,
+                             bool(signed), out, self._link_scratch(), np.empty((m.nlinks, 3)), jac)
+        return jac
+
+    def link_jacobian(self, q, link, point) -> np.ndarray:
+        """(6, nv) Jacobian at q of the world point ``point`` (3,) moving with ``link`` (an index into
+        ``model.link_names``, or its name): rows 0..2 the point's linear velocity, rows 3..5 the link's
+        angular velocity, both in the world frame, per unit rate of each column (the base's six first
+        with a floating base, then the joints in q order)."""
+        q = self.model.check_configuration(q)
+        if isinstance(link, str):
+            if link not in self.model.link_names:
+                raise ValueError(f"unknown link {link!r}; links: {list(self.model.link_names)}")
+            link = self.model.link_names.index(link)
+        if not 0 <= int(link) < self.model.nlinks:
+            raise ValueError(f"link must be an index from 0 to {self.model.nlinks - 1} or a link name; got {link}")
+        point = np.asarray(point, dtype=np.float64)
+        if point.shape != (3,) or not np.isfinite(point).all():
+            raise ValueError(f"point must be a finite (3,) world point (m); got {point!r}")
+        m = self.model
+        out = np.empty((6, self.nv))
+        kjac.point_jacobian(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
+                            m.q_offset, self.base, self.floating_base, q, int(link), point, self._link_scratch(),
+                            np.empty((m.nlinks, 3)), out)
+        return out
 
     def _check_prune(self, prune) -> float:
         prune = 0.0 if prune is None else float(prune)
@@ -496,23 +607,40 @@ class Scene:
             raise ValueError(f"prune must be None or a finite distance >= 0 (m); got {prune}")
         return prune
 
-    def distances(self, q, coherent: bool = True, prune: float | None = None, signed: bool = False) -> SceneDistances:
+    def distances(self, q, coherent: bool = True, prune: float | None = None, signed: bool = False,
+                  jacobian: bool = False) -> SceneDistances:
         """Every queried pair's distance, witness points and status at joint configuration q.
 
         coherent: start each pair from its last simplex when its relative pose moved little (along a
         trajectory); False starts every pair cold. prune: skip pairs whose bounding spheres are more
         than this far apart (m); None queries every pair. signed: overlapping pairs get minus their
-        penetration depth, with witness points and certified bounds (see spq.distance). Raises
-        ValueError for a q of the wrong length, with NaN/inf, or outside the joint limits."""
+        penetration depth, with witness points and certified bounds (see spq.distance).
+
+        jacobian: also every pair's row ∂d/∂q (``result.jacobian``, (npairs, nv), m per rad or m per m):
+        nᵀ(J_B(p_B) − J_A(p_A)) with the pair's own unit normal n and witness points (through an
+        overlap with signed=True, with the penetration normal), computed in compiled code. A pruned
+        pair's row is zero; a row is NaN where the result defines no gradient (a failed query, or an
+        overlap without signed=True). Columns: the joints in q order, after the base's six when the
+        scene has ``floating_base`` (see :class:`Scene`). The row is the true gradient where the
+        closest features are unique and one side is strictly convex (an STP-BV, a superellipsoid, a
+        sphere or capsule); between two polyhedra it jumps where the closest features switch.
+
+        Raises ValueError for a q of the wrong length, with NaN/inf, or outside the joint limits."""
         q = self.model.check_configuration(q)
-        out = self._run(q[None], coherent, self._check_prune(prune), signed=signed)
-        return SceneDistances.from_out(self.pairs, out[0])
+        qs = np.ascontiguousarray(q[None])
+        out = self._run(qs, coherent, self._check_prune(prune), signed=signed)
+        result = SceneDistances.from_out(self.pairs, out[0])
+        if jacobian:
+            result.jacobian = self._jacobians(qs, out, signed)[0]
+        return result
 
     def distances_many(self, qs, coherent: bool = False, prune: float | None = None,
-                       out: np.ndarray | None = None, signed: bool = False, workers: int = 1) -> np.ndarray:
+                       out: np.ndarray | None = None, signed: bool = False, workers: int = 1, jacobian: bool = False,
+                       jac_out: np.ndarray | None = None):
         """Raw results (N, npairs, OUT_SIZE; columns as spq.kernels.gjk.OUT_*) for N configurations
         (N, ndof) in one compiled call; coherent carries warm starts from one to the next; signed as
-        in :meth:`distances`.
+        in :meth:`distances`. With jacobian=True, returns ``(out, jac)``: jac (N, npairs, nv) each
+        pair's row ∂d/∂q as in :meth:`distances` (into ``jac_out`` when given, float64 C-contiguous).
 
         workers: threads (1 to spq.workers.MAX_WORKERS) that share a cold sweep (coherent=False) in
         contiguous chunks of configurations, each with its own copy of the pairs' warm-start state;
@@ -524,8 +652,11 @@ class Scene:
         so that a loop calling this again allocates nothing (a fresh array's first touch costs page
         faults, a few percent of a call over many configurations)."""
         qs = np.atleast_2d(np.asarray(qs, dtype=np.float64))
-        checked = self.model.check_configurations(qs)
-        return self._run(np.ascontiguousarray(checked), coherent, self._check_prune(prune), out, signed, workers)
+        checked = np.ascontiguousarray(self.model.check_configurations(qs))
+        out = self._run(checked, coherent, self._check_prune(prune), out, signed, workers)
+        if not jacobian:
+            return out
+        return out, self._jacobians(checked, out, signed, jac_out)
 
     def link_poses(self, q) -> np.ndarray:
         """(nlinks, 4, 4) world poses of the links at q."""
@@ -534,7 +665,7 @@ class Scene:
     def body_poses(self, q) -> np.ndarray:
         """(nbodies, 4, 4) world poses of the bodies' hull frames at q."""
         links = self.link_poses(q)
-        return np.array([links[b.link] @ b.offset for b in self.bodies])
+        return np.array([b.offset if b.link == WORLD else links[b.link] @ b.offset for b in self.bodies])
 
     def distance_gradient(self, q, result: SceneDistances, index: int) -> np.ndarray:
         """Gradient (ndof,) of pair ``index``'s distance with respect to the joint values, at q.
@@ -565,6 +696,12 @@ class Scene:
                     grad[j] += sign * m.q_multiplier[link] * float(n @ v)
                 link = m.parent[link]
         return grad
+
+
+def _as_obstacle(obstacle) -> Obstacle:
+    if not isinstance(obstacle, Obstacle):
+        raise ValueError(f"obstacles must be spq.scene.Obstacle objects; got {type(obstacle).__name__}")
+    return obstacle
 
 
 def _hull_is_tail(stp, pch) -> bool:

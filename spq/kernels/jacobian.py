@@ -1,0 +1,181 @@
+"""Distance Jacobians of a robot scene's pairs, over the flat arrays of :class:`spq.kinematics.RobotModel`.
+
+For a pair with witness points p_A on body A, p_B on body B and the unit normal n (from A to B),
+
+    ∂d/∂q = nᵀ (J_B(p_B) − J_A(p_A)),
+
+J_X(p) the 3×nv linear Jacobian of the point p fixed to X's link. Joint j of link l moves a point p
+of l or of any of its descendants with velocity ``a × (p − o)`` per unit rate (revolute: a the joint's
+world axis, o its world origin) or ``a`` (prismatic), times the joint's mimic multiplier; so the
+joint's column gets ``m · a·((p − o) × n)`` (revolute) or ``m · a·n`` (prismatic) from the B side, and
+minus that from the A side. A floating base adds six leading columns, the base's twist (v, ω) in the
+world frame (v the velocity of the base frame's origin b): the point moves with v + ω × (p − b).
+
+A link index ``>= parent.shape[0]`` stands for the world (static obstacles): its points do not move.
+Each moving joint's world axis and origin come from the link poses after forward kinematics: link i's
+pose is T_parent · origin_i · motion(q), and a joint's motion leaves its own axis and (for a rotation)
+its origin in place, so the axis is R_i · axis_i and the origin is T_i's translation.
+"""
+
+from __future__ import annotations
+
+import math
+
+from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, OUT_STATUS
+from spq.kernels.jit import kernel
+from spq.kernels.kinematics import PRISMATIC, forward_kinematics
+
+BASE_COLUMNS = 6  # columns a floating base adds in front of the joints: v (3, m/s), ω (3, rad/s), world frame
+STATUS_SEPARATED = 0
+STATUS_TOUCHING = 1
+STATUS_OVERLAPPING = 2
+PRUNED = -1  # as spq.kernels.scene.PRUNED (not imported: that module's kernels need not load here)
+
+
+@kernel
+def joint_axes(links, joint_axis, out):
+    """World axis of every link's joint: out[i] = R_i · joint_axis[i] (links (n, 4, 4) from forward
+    kinematics; out (n, 3))."""
+    for i in range(joint_axis.shape[0]):
+        for r in range(3):
+            out[i, r] = links[i, r, 0] * joint_axis[i, 0] + links[i, r, 1] * joint_axis[i, 1] + \
+                links[i, r, 2] * joint_axis[i, 2]
+
+
+@kernel
+def add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, link, p, n, sign, row):
+    """row += sign · nᵀ J(p) for the world point p (3,) fixed to ``link``, along the world direction n (3,).
+
+    row (nv,): the base's six columns first when ``floating``, then the joints'. A link index outside
+    the model (the world) adds nothing."""
+    nlinks = parent.shape[0]
+    if link < 0 or link >= nlinks:
+        return
+    first = 0
+    if floating:
+        first = 6
+        b0 = p[0] - base[0, 3]
+        b1 = p[1] - base[1, 3]
+        b2 = p[2] - base[2, 3]
+        row[0] += sign * n[0]
+        row[1] += sign * n[1]
+        row[2] += sign * n[2]
+        # ω·((p − b) × n)
+        row[3] += sign * (b1 * n[2] - b2 * n[1])
+        row[4] += sign * (b2 * n[0] - b0 * n[2])
+        row[5] += sign * (b0 * n[1] - b1 * n[0])
+    l = link
+    while l >= 0:
+        j = q_index[l]
+        if j >= 0:
+            a0 = axes[l, 0]
+            a1 = axes[l, 1]
+            a2 = axes[l, 2]
+            if joint_type[l] == PRISMATIC:
+                value = a0 * n[0] + a1 * n[1] + a2 * n[2]
+            else:
+                r0 = p[0] - links[l, 0, 3]
+                r1 = p[1] - links[l, 1, 3]
+                r2 = p[2] - links[l, 2, 3]
+                value = a0 * (r1 * n[2] - r2 * n[1]) + a1 * (r2 * n[0] - r0 * n[2]) + a2 * (r0 * n[1] - r1 * n[0])
+            row[first + j] += sign * q_multiplier[l] * value
+        l = parent[l]
+
+
+@kernel
+def pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, slot_link, pair_slots,
+                   signed, out, jac):
+    """Every pair's row ∂d/∂q into jac (npairs, nv) from its query result out (npairs, OUT_SIZE).
+
+    A pruned pair gets a zero row; a pair whose result defines no gradient (failed, an overlap of an
+    unsigned query, or a non-finite normal or witness point) gets a row of NaN."""
+    nan = math.nan
+    for p in range(pair_slots.shape[0]):
+        row = jac[p]
+        row[:] = 0.0
+        res = out[p]
+        code = int(res[OUT_STATUS])
+        if code == PRUNED:
+            continue
+        ok = code == STATUS_SEPARATED or code == STATUS_TOUCHING or (code == STATUS_OVERLAPPING and signed)
+        for k in range(3):
+            if not (math.isfinite(res[OUT_NORMAL + k]) and math.isfinite(res[OUT_POINT_A + k])
+                    and math.isfinite(res[OUT_POINT_B + k])):
+                ok = False
+        if not ok:
+            row[:] = nan
+            continue
+        n = res[OUT_NORMAL:OUT_NORMAL + 3]
+        add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating,
+                      slot_link[pair_slots[p, 0]], res[OUT_POINT_A:OUT_POINT_A + 3], n, -1.0, row)
+        add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating,
+                      slot_link[pair_slots[p, 1]], res[OUT_POINT_B:OUT_POINT_B + 3], n, 1.0, row)
+
+
+@kernel(nogil=True)
+def scene_jacobians(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, floating,
+                    qs, slot_link, pair_slots, signed, out, links, axes, jac):
+    """:func:`pair_jacobians` for each of N configurations qs (N, ndof) and their results out
+    (N, npairs, OUT_SIZE) into jac (N, npairs, nv); links (>= nlinks, 4, 4), axes (nlinks, 3): scratch.
+
+    Forward kinematics runs again here (a few µs per configuration against the queries' hundreds), so
+    the distance sweep stays the one compiled loop it is without Jacobians."""
+    for i in range(qs.shape[0]):
+        forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, qs[i], base,
+                           links)
+        joint_axes(links, joint_axis, axes)
+        pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, slot_link, pair_slots,
+                       signed, out[i], jac[i])
+
+
+@kernel
+def point_jacobian(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, floating, q,
+                   link, p, links, axes, out):
+    """out (6, nv) = the Jacobian of the world point p (3,) fixed to ``link``: rows 0..2 its linear
+    velocity, rows 3..5 the link's angular velocity (world frame), per unit rate of each column.
+    links (>= nlinks, 4, 4), axes (nlinks, 3): scratch."""
+    forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, q, base, links)
+    joint_axes(links, joint_axis, axes)
+    out[:, :] = 0.0
+    if link < 0 or link >= parent.shape[0]:
+        return
+    first = 0
+    if floating:
+        first = 6
+        b0 = p[0] - base[0, 3]
+        b1 = p[1] - base[1, 3]
+        b2 = p[2] - base[2, 3]
+        for k in range(3):
+            out[k, k] = 1.0
+            out[3 + k, 3 + k] = 1.0
+        # v + ω × (p − b): the ω columns of the linear rows are −[p − b]×
+        out[0, 4] = b2
+        out[0, 5] = -b1
+        out[1, 3] = -b2
+        out[1, 5] = b0
+        out[2, 3] = b1
+        out[2, 4] = -b0
+    l = link
+    while l >= 0:
+        j = q_index[l]
+        if j >= 0:
+            m = q_multiplier[l]
+            a0 = m * axes[l, 0]
+            a1 = m * axes[l, 1]
+            a2 = m * axes[l, 2]
+            c = first + j
+            if joint_type[l] == PRISMATIC:
+                out[0, c] += a0
+                out[1, c] += a1
+                out[2, c] += a2
+            else:
+                r0 = p[0] - links[l, 0, 3]
+                r1 = p[1] - links[l, 1, 3]
+                r2 = p[2] - links[l, 2, 3]
+                out[0, c] += a1 * r2 - a2 * r1
+                out[1, c] += a2 * r0 - a0 * r2
+                out[2, c] += a0 * r1 - a1 * r0
+                out[3, c] += a0
+                out[4, c] += a1
+                out[5, c] += a2
+        l = parent[l]
