@@ -17,7 +17,7 @@ from spq.query import (
     distances,
 )
 from spq.kinematics import RobotModel
-from spq.scene import Body, Scene, SceneDistances
+from spq.scene import Body, Obstacle, Scene, SceneDistances
 from spq.shapes.base import Shape
 from spq.shapes.polyhedron import Polyhedron
 from spq.shapes.primitives import Box, Capsule, Sphere
@@ -30,5 +30,5 @@ __all__ = [
     "STATUS_NAMES", "DEFAULT_MAX_ITER", "DEFAULT_TOL_ABS", "DEFAULT_TOL_REL", "BatchDistances",
     "DistanceResult", "Pair", "distance", "distances", "Shape", "Polyhedron", "Box", "Capsule", "Sphere", "STPBV",
     "Superellipsoid", "Ellipsoid", "FitResult", "distance_gradient", "distance_gradients",
-    "RobotModel", "Scene", "SceneDistances", "Body",
+    "RobotModel", "Scene", "SceneDistances", "Body", "Obstacle",
 ]
