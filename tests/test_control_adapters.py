@@ -35,7 +35,7 @@ CLAW_URDF = """<robot name="claw">
   <joint name="elbow" type="revolute"><parent link="arm"/><child link="forearm"/><origin xyz="0 0 0.45"/>
     <axis xyz="0 1 0"/><limit lower="-3.1" upper="3.1" effort="1" velocity="1"/></joint>
   <joint name="roll" type="continuous"><parent link="forearm"/><child link="wrist"/><origin xyz="0 0 0.3"/>
-    <axis xyz="0 0 1"/></joint>
+    <axis xyz="0 0 1"/><limit effort="1" velocity="1"/></joint>
   <joint name="grip" type="prismatic"><parent link="wrist"/><child link="finger_l"/>
     <origin xyz="0.02 0 0.08"/><axis xyz="1 0 0"/><limit lower="-0.012" upper="0.015" effort="1" velocity="1"/></joint>
   <joint name="grip_mimic" type="prismatic"><parent link="wrist"/><child link="finger_r"/>
@@ -375,6 +375,40 @@ def test_pink_solve_ik_step_keeps_the_barrier_and_the_damper(claw, pin_claw):
     assert np.all(d_next[rows.pairs] - rows.distance >= -dt * rows.h - 1e-4)
 
 
+REACH_INTO_BASE = np.array([0.12, 0.0, 0.05])  # m: a wrist target beside the base, reached only through it
+
+
+def pink_run(claw, model, limits, barriers, steps=150, dt=0.01):
+    """Smallest distance of each pair over a pink loop driving the wrist to REACH_INTO_BASE from FOLDED."""
+    import pink
+
+    jmap = pinocchio_joint_map(claw, model)
+    configuration = pink.Configuration(model, model.createData(), jmap.from_spq_q(FOLDED))
+    task = pink.tasks.FrameTask("wrist", position_cost=1.0, orientation_cost=0.0)
+    target = configuration.get_transform_frame_to_world("wrist").copy()
+    target.translation = REACH_INTO_BASE
+    task.set_target(target)
+    smallest = np.full(len(claw.pairs), np.inf)
+    for _ in range(steps):
+        v = pink.solve_ik(configuration, [task], dt, solver="daqp", barriers=barriers,
+                          limits=limits + [model.configuration_limit, model.velocity_limit])
+        configuration.integrate_inplace(v, dt)
+        d = claw.distances(jmap.to_spq_q(configuration.q), coherent=False, signed=True).distance
+        smallest = np.minimum(smallest, d)
+    return smallest
+
+
+def test_in_a_pink_loop_the_damper_and_the_barrier_keep_the_bodies_apart(claw, pin_claw):
+    pytest.importorskip("pink", reason="pink not installed (pip install pin-pink)")
+    from spq.control import SceneBarrier
+
+    assert pink_run(claw, pin_claw, [], None).min() < -0.05  # unconstrained, the hand goes through the base
+    # first-order rows at 1 rad/s and 10 ms steps: the corners of boxes overshoot by under a millimetre
+    assert pink_run(claw, pin_claw, [DamperLimit(claw, di=DI, ds=DS, xi=XI)], None).min() > DS - 1e-3
+    barrier = SceneBarrier(claw, n_collision_pairs=3, d_min=0.02)
+    assert pink_run(claw, pin_claw, [], [barrier]).min() > 0.02 - 1e-3
+
+
 def test_scene_barrier_beyond_the_detection_distance_has_inactive_rows(claw, pin_claw):
     pink = pytest.importorskip("pink", reason="pink not installed (pip install pin-pink)")
     from spq.control import SceneBarrier
@@ -401,23 +435,27 @@ def test_scene_barrier_beyond_the_detection_distance_has_inactive_rows(claw, pin
 
 
 # ---------------------------------------------------------------- 5. mink
-def test_mink_solve_ik_step_keeps_the_damper(claw, mj_claw):
+def test_mink_solve_ik_keeps_the_damper_step_by_step(claw, mj_claw):
     mink = pytest.importorskip("mink", reason="mink not installed (pip install mink)")
     jmap = mujoco_joint_map(claw, mj_claw)
     configuration = mink.Configuration(mj_claw)
     configuration.update(jmap.from_spq_q(FOLDED))
     task = mink.FrameTask("wrist", "body", position_cost=1.0, orientation_cost=0.0)
-    arm = configuration.get_transform_frame_to_world("arm", "body")
     wrist = configuration.get_transform_frame_to_world("wrist", "body")
-    target = arm.translation() + 0.3 * (arm.rotation().as_matrix() @ np.array([0.0, 0.0, 1.0]))
-    task.set_target(mink.SE3.from_rotation_and_translation(wrist.rotation(), target))
+    task.set_target(mink.SE3.from_rotation_and_translation(wrist.rotation(), REACH_INTO_BASE))
     limit = DamperLimit(claw, di=DI, ds=DS, xi=XI, backend="mink")
-    assert isinstance(limit, mink.limits.Limit)
-    dt = 0.01
-    v = mink.solve_ik(configuration, [task], dt, "daqp", limits=[limit])
-    constraint = limit.compute_qp_inequalities(configuration, dt)
-    assert not constraint.inactive and np.all(constraint.G @ (v * dt) <= constraint.h + 1e-9)
-    assert np.linalg.norm(v) > 0
+    assert isinstance(limit, mink.limits.Limit) and isinstance(limit, DamperLimit)
+    speed = mink.VelocityLimit(mj_claw, {name: 1.0 for name in ("shoulder", "elbow", "roll", "grip", "grip_mimic")})
+    dt, active, smallest = 0.01, 0, np.inf
+    for _ in range(150):
+        v = mink.solve_ik(configuration, [task], dt, "daqp", limits=[limit, mink.ConfigurationLimit(mj_claw), speed])
+        constraint = limit.compute_qp_inequalities(configuration, dt)
+        if not constraint.inactive:
+            active += 1
+            assert np.all(constraint.G @ (v * dt) <= constraint.h + 1e-9)
+        configuration.integrate_inplace(v, dt)
+        smallest = min(smallest, claw.distances(jmap.to_spq_q(configuration.q), coherent=False, signed=True).min_distance)
+    assert active >= 100 and smallest > DS - 1e-3
 
 
 # ---------------------------------------------------------------- 6. optional dependencies
