@@ -22,6 +22,9 @@ resolved to absolute paths, and as a :class:`spq.Scene` (:func:`load_scene`) in 
   (pinocchio's peer is read the same way, without a free-flyer root joint). A URDF whose own joints
   include a ``floating`` or ``planar`` joint is refused by the reader (none of this set has one).
 
+MoveIt SRDFs ship for many robots (``robots/<folder>/srdf/*.srdf``); :func:`robot_srdf` names the one
+that goes with a robot, for its ``<disable_collisions>`` pairs (spq.io.srdf, spq.collision_pairs).
+
 Mesh filenames take the forms ``package://example-robot-data/robots/...`` (also with three
 slashes), ``package://<folder>/...`` for a folder of ``robots/``, a path relative to the URDF, or
 ``file:///...``; a mesh that is not shipped raises ValueError naming it.
@@ -82,6 +85,30 @@ def robot_urdf(name: str) -> Path:
     if name not in catalogue:
         raise ValueError(f"unknown robot {name!r} of {DISTRIBUTION}; known: {', '.join(catalogue)}")
     return catalogue[name]
+
+
+SRDF_OF = {  # URDF stem -> SRDF file of its folder, as example-robot-data's own loaders pair them
+    "baxter": "baxter_manipulation.srdf", "hyq_no_sensors": "hyq.srdf", "icub_reduced": "icub.srdf",
+    "solo12": "solo.srdf", "ur5_robot": "ur5.srdf", "talos_full_v2": "talos.srdf", "talos_full_v2_box": "talos.srdf",
+    "talos_left_arm": "talos.srdf", "talos_reduced": "talos.srdf", "talos_reduced_box": "talos.srdf",
+    "talos_reduced_corrected": "talos.srdf",
+}
+
+
+def robot_srdf(name: str) -> Path | None:
+    """The SRDF shipped for robot ``name``, or None: ``srdf/<URDF stem>.srdf`` in the robot's folder of
+    ``robots/`` if it exists, else the file example-robot-data's loaders pair the URDF with
+    (SRDF_OF: every Talos variant with talos.srdf, solo12 with solo.srdf, ...). Some shipped SRDFs
+    have no ``<disable_collisions>`` (kinova, z1, icub's are commented out), and some name links a
+    variant does not have (talos_left_arm); pinocchio passes such links over. ValueError for an
+    unknown robot."""
+    urdf = robot_urdf(name)
+    robots = package_root() / "robots"
+    folder = robots / urdf.relative_to(robots).parts[0] / "srdf"
+    for candidate in (f"{urdf.stem}.srdf", SRDF_OF.get(urdf.stem)):
+        if candidate and (folder / candidate).is_file():
+            return folder / candidate
+    return None
 
 
 def resolve_mesh(filename: str, urdf: Path) -> Path:
