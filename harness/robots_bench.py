@@ -15,7 +15,10 @@ configurations:
 - coal from Python (tolerance 1e-8 m, signed distance on) on the same pairs at the first
   configurations: its largest difference from spq's PCH distances on pairs spq finds separated;
 - gradient jumps of the closest pair along a smooth trajectory for pch and auto
-  (robot_bench.gradient_track and gradient_jumps: the largest changes bisected ten times).
+  (robot_bench.gradient_track and gradient_jumps: the largest changes bisected ten times);
+- the pairs left once the robot's shipped SRDF (datasets.example_robots.robot_srdf, MoveIt's
+  ``disable_collisions``) is applied on top of the adjacent-link rule, beside the pairs measured
+  (which do not use it); a robot without an SRDF says so.
 
 A robot that does not load is a row with status 'failed' and the reason; one without pairs to
 query (a single link, every body on adjacent links) or without a movable joint is a row that says so.
@@ -41,7 +44,8 @@ COAL_TOLERANCE = 1e-8  # m: coal's gjk_tolerance, as the coal engine adapter set
 PROBE_CONFIGURATIONS = 25  # pinocchio's GJK variants race on these first; only the fastest is timed against spq
 STATUS_RAN, STATUS_FAILED, STATUS_NO_PAIRS, STATUS_NO_JOINTS = "ran", "failed", "no pairs", "no joints"
 COLUMNS = ["robot", "status", "reason", "links", "dof", "bodies", "meshes", "boxes", "spheres", "capsules",
-           "cylinders", "hull_vertices", "pairs", "load_s", "pch_cold_ms", "auto_cold_ms", "pch_coherent_ms",
+           "cylinders", "hull_vertices", "pairs", "srdf", "srdf_disabled", "pairs_srdf", "load_s", "pch_cold_ms",
+           "auto_cold_ms", "pch_coherent_ms",
            "auto_coherent_ms", "pinocchio_ms", "pinocchio_variant", "pinocchio_over_pch", "pinocchio_over_auto",
            "pinocchio_max_diff_m", "pinocchio_overlap_disagreements", "coal_max_diff_m", "coal_overlap_disagreements",
            "overlapping_pct", "pch_jumps", "auto_jumps", "jump_pairs", "seconds"]
@@ -71,6 +75,30 @@ def _reason(exc: BaseException) -> str:
     except ValueError:
         pass
     return " ".join(text.split())
+
+
+SRDF_NONE = "none shipped"
+
+
+def srdf_counts(name: str, scene) -> dict:
+    """{'srdf': the robot's shipped SRDF file name (or SRDF_NONE, or why it was not read),
+    'srdf_disabled': its disable_collisions link pairs, 'pairs_srdf': the scene's pairs that the SRDF
+    does not disable (NaN without one)}. SRDF links the URDF lacks are passed over, as pinocchio does."""
+    from datasets.example_robots import robot_srdf
+    from spq.collision_pairs import skip_pairs
+    from spq.io.srdf import read_srdf
+
+    path = robot_srdf(name)
+    if path is None:
+        return {"srdf": SRDF_NONE, "srdf_disabled": np.nan, "pairs_srdf": np.nan}
+    try:
+        disabled = read_srdf(path)
+    except ValueError as exc:
+        return {"srdf": f"{path.name}: {_reason(exc)}", "srdf_disabled": np.nan, "pairs_srdf": np.nan}
+    skip = {frozenset(p) for p in skip_pairs(scene.bodies, disabled, link_names=scene.model.link_names,
+                                             unknown="ignore")}
+    left = sum(frozenset(p) not in skip for p in scene.pair_names)
+    return {"srdf": path.name, "srdf_disabled": len(disabled), "pairs_srdf": left}
 
 
 def derive_scene(scene, policy: str, cache: ShapeCache):
@@ -188,7 +216,7 @@ def measure_robot(name: str, config, cache: ShapeCache) -> dict:
     model = pch.model
     row.update(links=model.nlinks, dof=model.ndof, bodies=len(pch.bodies), pairs=len(pch.pairs),
                hull_vertices=sum(len(b.hull.vertices) for b in pch.bodies if b.shape is None),
-               **geometry_counts(model))
+               **geometry_counts(model), **srdf_counts(name, pch))
     scenes = {"pch": pch}
     try:
         scenes["auto"] = derive_scene(pch, "auto", cache)

@@ -83,12 +83,16 @@ def run(config: Config) -> Output:
         "configurations). *_jumps: gradient jumps of the closest pair (among jump_pairs pairs separated at every step "
         f"and moving by over {rb.MOVING_PAIR_M:g} m) along the first {config.steps} steps of a trajectory sampled "
         f"{rb.CONTINUITY_ZOOM}x finer, the {rb.JUMP_CANDIDATES} largest changes bisected {rb.BISECTIONS} times. "
+        "srdf: the MoveIt SRDF example-robot-data ships for the robot (datasets.example_robots.robot_srdf; "
+        f"'{rsb.SRDF_NONE}' where there is none), srdf_disabled: its disable_collisions link pairs, pairs_srdf: the "
+        "pairs left once they are skipped as well (links the URDF lacks passed over, as pinocchio does); the timings "
+        "above use every pair (pairs). "
         "status: ran, failed (reason: why it did not load), no pairs, no joints; reason also says what did not run.")
     out = Output(meta=meta, figures=[Figure(name, draw) for name, draw in result["figures"]])
     out.tables = [Table("robots", "example-robot-data: all pairs per configuration, per robot", table, notes)]
-    shown = ["robot", "status", "bodies", "pairs", "pch_cold_ms", "auto_cold_ms", "pch_coherent_ms",
-             "auto_coherent_ms", "pinocchio_ms", "pinocchio_over_pch", "pinocchio_over_auto", "coal_max_diff_m",
-             "pch_jumps", "auto_jumps"]
+    shown = ["robot", "status", "bodies", "pairs", "pairs_srdf", "srdf", "pch_cold_ms", "auto_cold_ms",
+             "pch_coherent_ms", "auto_coherent_ms", "pinocchio_ms", "pinocchio_over_pch", "pinocchio_over_auto",
+             "coal_max_diff_m", "pch_jumps", "auto_jumps"]
     out.lines = [*frame_lines(table[shown]), "", *summary_lines(table)]
     return out
 
@@ -99,6 +103,10 @@ def summary_lines(table) -> list[str]:
 
     ran = table[table.status == rsb.STATUS_RAN]
     lines = [f"{len(ran)} of {len(table)} robots ran ({int(ran.pairs.sum()) if len(ran) else 0} pairs in all)."]
+    with_srdf = table[table.srdf.astype(str).str.endswith(".srdf")]
+    if len(with_srdf):
+        lines.append(f"{len(with_srdf)} of {len(table)} robots ship an SRDF: their {int(with_srdf.pairs.sum())} pairs "
+                     f"are {int(with_srdf.pairs_srdf.sum())} once its disable_collisions are skipped.")
 
     def span(column, unit=""):
         v = ran[column].astype(float)
