@@ -454,7 +454,8 @@ def test_mink_solve_ik_keeps_the_damper_step_by_step(claw, mj_claw):
             active += 1
             assert np.all(constraint.G @ (v * dt) <= constraint.h + 1e-9)
         configuration.integrate_inplace(v, dt)
-        smallest = min(smallest, claw.distances(jmap.to_spq_q(configuration.q), coherent=False, signed=True).min_distance)
+        q = jmap.to_spq_q(configuration.q)
+        smallest = min(smallest, claw.distances(q, coherent=False, signed=True).min_distance)
     assert active >= 100 and smallest > DS - 1e-3
 
 

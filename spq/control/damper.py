@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DEFINED_STATUSES = ("separated", "touching", "overlapping")  # a pair whose distance and normal mean something
+FAILED_STATUS = "failed"  # SceneDistances.status of a query that did not converge: no distance, no row
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,21 +80,28 @@ def check_damper_parameters(di, ds, xi) -> tuple[float, float, float]:
 def damper_rows(result, di: float, ds: float, xi: float) -> DamperRows:
     """The damper's rows from one configuration's scene result (a SceneDistances with ``jacobian``).
 
-    A pair gives a row when it is queried (not pruned) and d < di; a pair whose status is not one of
-    DEFINED_STATUSES or whose Jacobian row or distance is not finite gives none and is listed in
-    ``failed``."""
+    A pair gives a row when it is queried (not pruned) and d < di; a pair whose status is 'failed',
+    or whose Jacobian row is not finite (an overlap queried without ``signed``), gives none and is
+    listed in ``failed``."""
     di, ds, xi = check_damper_parameters(di, ds, xi)
-    jac = result.jacobian
-    if jac is None:
+    if result.jacobian is None:
         raise ValueError("the scene result has no Jacobian: query it with scene.distances(q, jacobian=True)")
-    d = np.asarray(result.distance, dtype=np.float64)
-    queried = ~np.asarray(result.pruned, dtype=bool)
-    defined = np.isin(result.status, DEFINED_STATUSES) & np.isfinite(d) & np.isfinite(jac).all(axis=1)
-    failed = np.flatnonzero(queried & ~defined)
-    close = np.flatnonzero(queried & defined & (d < di))
-    close = close[np.argsort(d[close], kind="stable")]
-    rows = np.ascontiguousarray(jac[close], dtype=np.float64)
-    dist = d[close].copy()
+    return _damper_rows(result, di, ds, xi)
+
+
+def _damper_rows(result, di: float, ds: float, xi: float) -> DamperRows:
+    d, jac = result.distance, result.jacobian
+    failed_query = result.status == FAILED_STATUS
+    close = np.flatnonzero(d < di)  # a pruned pair's distance is inf, a NaN compares False
+    rows = jac[close]
+    ok = np.isfinite(rows).all(axis=1) & ~failed_query[close]
+    failed = np.flatnonzero(failed_query)
+    if not ok.all():
+        failed = np.union1d(failed, close[~ok])
+        close, rows = close[ok], rows[ok]
+    order = np.argsort(d[close], kind="stable")
+    close, rows = close[order], np.ascontiguousarray(rows[order])
+    dist = d[close]
     h = xi * (dist - ds) / (di - ds)
     return DamperRows(G=-rows, h=h, pairs=close.astype(np.int64), distance=dist, jacobian=rows,
                       failed=failed.astype(np.int64))
@@ -131,7 +138,7 @@ class VelocityDamper:
         ValueError for a q the scene rejects (shape, NaN, outside the limits)."""
         result = self.scene.distances(q, coherent=True, prune=self.di, signed=self.signed, jacobian=True)
         self.last_result = result
-        return damper_rows(result, self.di, self.ds, self.xi)
+        return _damper_rows(result, self.di, self.ds, self.xi)
 
     def __repr__(self) -> str:
         return (f"VelocityDamper(di={self.di}, ds={self.ds}, xi={self.xi}, signed={self.signed}, "
