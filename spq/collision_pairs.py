@@ -18,6 +18,12 @@ links is in collision when one pair of their bodies is (GJK status 'touching' or
 distance <= 0, or a failed query, counted as a collision so that it never makes a pair 'Never').
 Bodies are the scene's hulls, primitives or other volumes, so the verdicts are the scene's own.
 
+'Never' speaks of uniformly random configurations only: a pair that meets in rare postures is
+disabled by it although a task that drives the two links together makes them collide (JVRC-1, 100000
+samples: the fingers of the two hands, a hand and the other elbow; such pairs collide in about 1 of
+20000 fresh random configurations). A controller whose tasks bring links together can keep them by
+leaving out the 'Never' entries (``[p for p in pairs if p[2] != NEVER]``); more samples disable fewer.
+
 :func:`skip_pairs` maps link pairs (from an SRDF, :func:`spq.io.srdf.read_srdf`, or from the
 sampling) onto the body-name pairs that ``Scene(..., skip=...)`` takes: a link may carry several
 bodies (``LINK#k``), and a link without bodies is passed over.
