@@ -136,6 +136,20 @@ def test_damper_rejects_bad_parameters(claw):
         VelocityDamper(claw).rows([0.0, 3.2, 0.0, 0.0])
 
 
+def test_a_failed_query_gives_no_row_and_is_counted(claw):
+    from spq.control.damper import damper_rows
+
+    result = claw.distances(FOLDED, coherent=False, signed=True, jacobian=True)
+    close = np.flatnonzero(result.distance < DI)
+    result.status[close[0]] = "failed"  # as a query that did not converge reports itself
+    result.jacobian[close[0]] = np.nan
+    rows = damper_rows(result, DI, DS, XI)
+    assert rows.failed.tolist() == [close[0]] and rows.n_failed == 1
+    assert sorted(rows.pairs.tolist()) == close[1:].tolist()
+    with pytest.raises(ValueError, match=r"jacobian=True"):
+        damper_rows(claw.distances(FOLDED), DI, DS, XI)
+
+
 def test_an_unsigned_overlap_gives_no_row_and_is_counted(claw):
     q = np.array([0.3, 3.0, 0.3, 0.004])  # folded into the arm and the base
     signed = claw.distances(q, coherent=False, signed=True)
@@ -230,8 +244,15 @@ def test_maps_refuse_models_of_another_robot(claw, pin_claw, floating_claw, claw
         pinocchio_joint_map(claw, pin.buildModelFromUrdf(str(other)))
     with pytest.raises(ValueError, match="floating base but the pinocchio model has no free root joint"):
         pinocchio_joint_map(floating_claw, pin_claw)
+    jmap = pinocchio_joint_map(claw, pin_claw)
     with pytest.raises(ValueError, match=r"shape \(6,\)"):
-        pinocchio_joint_map(claw, pin_claw).to_spq_q(np.zeros(4))
+        jmap.to_spq_q(np.zeros(4))
+    # a QP's rounding past a limit is put back on it; a real excursion is refused by the scene
+    q_pin = jmap.from_spq_q(np.array([1.5 + 1e-9, 0.0, 0.0, 0.0]))
+    assert jmap.to_spq_q(q_pin)[0] == 1.5
+    q_pin = jmap.from_spq_q(np.array([1.5 + 1e-3, 0.0, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="'shoulder' is outside its limits"):
+        VelocityDamper(claw).rows(jmap.to_spq_q(q_pin))
     # a free-flyer model on a fixed-base scene: exact for self-collision (the base moves every body
     # alike, its columns are 0), refused when the scene has obstacles
     pin_floating = pin.buildModelFromUrdf(str(claw_urdf), pin.JointModelFreeFlyer())

@@ -45,6 +45,8 @@ import numpy as np
 from spq.kinematics import CONTINUOUS
 
 BASE_COLUMNS = 6  # a floating base's twist: linear then angular velocity
+LIMIT_TOLERANCE = 1e-6  # rad or m: a joint this far past a limit (a QP's rounding) is put back on it, as pink's
+#                         check_limits tolerates; farther, the scene refuses the configuration (ValueError)
 
 
 def _pinocchio():
@@ -101,6 +103,8 @@ class JointMap:
     base_q: int
     base_v: int
     scene_floating: bool
+    lower: np.ndarray
+    upper: np.ndarray
 
     @property
     def scene_nv(self) -> int:
@@ -115,13 +119,16 @@ class JointMap:
         return arr
 
     def to_spq_q(self, q_other) -> np.ndarray:
-        """The scene's joint values (ndof,) in radians / metres from the other model's q (nq,)."""
+        """The scene's joint values (ndof,) in radians / metres from the other model's q (nq,); a
+        value past the scene's joint limits by at most LIMIT_TOLERANCE is put on the limit."""
         q_other = self._check(q_other, self.nq, "the other model's configuration")
         a = self.q_address
         out = q_other[a].copy()
         cs = self.cos_sin
         out[cs] = np.arctan2(q_other[a[cs] + 1], q_other[a[cs]])
         out[self.wrap] = np.mod(out[self.wrap] + np.pi, 2.0 * np.pi) - np.pi
+        near = (out >= self.lower - LIMIT_TOLERANCE) & (out <= self.upper + LIMIT_TOLERANCE)
+        out[near] = np.clip(out[near], self.lower[near], self.upper[near])
         return out
 
     def base_pose(self, q_other) -> np.ndarray | None:
@@ -247,7 +254,7 @@ def _finish(scene, found, unknown, mimic_rows, nq, nv, base, base_q, base_v, wha
     qa, va, cs, wrap = (np.array([found[n][k] for n in names]) for k in range(4))
     return JointMap(tuple(names), int(nq), int(nv), qa.astype(np.int64).reshape(-1), va.astype(np.int64).reshape(-1),
                     cs.astype(bool).reshape(-1), wrap.astype(bool).reshape(-1), tuple(mimic_rows), base,
-                    int(base_q), int(base_v), scene_is_floating(scene))
+                    int(base_q), int(base_v), scene_is_floating(scene), scene.model.lower, scene.model.upper)
 
 
 def pinocchio_joint_map(scene, model) -> JointMap:
