@@ -70,11 +70,6 @@ def scene_is_floating(scene) -> bool:
     return bool(getattr(scene, "floating_base", False))
 
 
-def scene_nv(scene) -> int:
-    """Number of velocity columns of the scene's Jacobians: 6 + ndof floating, ndof fixed."""
-    return scene.model.ndof + (BASE_COLUMNS if scene_is_floating(scene) else 0)
-
-
 def _has_obstacles(scene) -> bool:
     return any(b.link < 0 for b in scene.bodies)
 
@@ -108,6 +103,7 @@ class JointMap:
 
     @property
     def scene_nv(self) -> int:
+        """Velocity columns of the scene's Jacobians (``scene.nv``): 6 + ndof floating, ndof fixed."""
         return len(self.joint_names) + (BASE_COLUMNS if self.scene_floating else 0)
 
     def _check(self, values, size: int, what: str) -> np.ndarray:

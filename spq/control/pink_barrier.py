@@ -4,11 +4,12 @@ with spq as the geometry source.
 A pink user swaps the geometry source in two lines::
 
     # barrier = pink.barriers.SelfCollisionBarrier(n_collision_pairs=10, d_min=0.02)
-    from spq.control import SceneBarrier
-    barrier = SceneBarrier(scene, n_collision_pairs=10, d_min=0.02)
+    scene = spq.Scene.from_urdf(urdf_path, policy="auto", srdf=srdf_path)  # the same URDF as pink's model
+    barrier = spq.control.SceneBarrier(scene, n_collision_pairs=10, d_min=0.02)
 
-(the pink Configuration then needs no collision model). Importing this module needs pink
-(``pip install pin-pink``).
+and the rest of the pink loop stays (``pink.solve_ik(configuration, tasks, dt, solver, barriers=[barrier])``);
+the pink Configuration then needs no collision model, which also saves its coal computeDistances
+in every ``configuration.update``. Importing this module needs pink (``pip install pin-pink``).
 """
 
 from __future__ import annotations
