@@ -13,7 +13,12 @@ Units: metres, seconds; ξ in 1/s (h in m/s, G in m per unit of each velocity co
 are the scene's: the joints in q order (``scene.model.joint_names``), after the base twist's 6
 columns for a floating-base scene (see :meth:`spq.scene.Scene.distances`). The rows feed a
 hand-written QP directly; :mod:`spq.control.limits` turns them into pink's and mink's limits and
-:mod:`spq.control.joint_map` into another model's velocity columns.
+:mod:`spq.control.joint_map` into another model's velocity columns. For instance, with qpsolvers::
+
+    damper = VelocityDamper(scene, di=0.05, ds=0.01, xi=0.5)
+    rows = damper.rows(q)                      # G (k, nv), h (k,)
+    qdot = qpsolvers.solve_qp(P, c, G=np.vstack([rows.G, G_limits]), h=np.concatenate([rows.h, h_limits]),
+                              solver="daqp")
 """
 
 from __future__ import annotations

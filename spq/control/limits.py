@@ -10,10 +10,15 @@ Usage (pink)::
 
     from spq.control import DamperLimit
     limit = DamperLimit(scene, di=0.05, ds=0.01, xi=0.5)                  # backend="pink"
-    v = pink.solve_ik(configuration, tasks, dt, solver="proxqp", limits=[limit, ...])
+    model = configuration.model
+    v = pink.solve_ik(configuration, tasks, dt, solver="daqp",
+                      limits=[limit, model.configuration_limit, model.velocity_limit])
 
-(mink: ``DamperLimit(scene, ..., backend="mink")`` and ``mink.solve_ik(configuration, tasks, dt,
-"daqp", limits=[limit, ...])``.) pink or mink is imported when a limit is made, not before.
+(``limits=`` replaces pink's default joint limits, hence the two listed after the damper; without
+a velocity limit the first-order rows can be stepped over.) mink: ``DamperLimit(scene, ...,
+backend="mink")`` and ``mink.solve_ik(configuration, tasks, dt, "daqp", limits=[limit,
+mink.ConfigurationLimit(model), mink.VelocityLimit(model, ...)])``. pink or mink is imported when
+a limit is made, not before.
 """
 
 from __future__ import annotations
