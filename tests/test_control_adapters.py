@@ -204,15 +204,19 @@ def pinocchio_fd_rows(pin, model, jmap, scene, q_pin, pairs, step=FD_STEP):
     return out
 
 
-def test_rows_in_pinocchio_columns_equal_differences_along_pinocchio_integrate(claw, pin_claw):
+@pytest.mark.parametrize("mimic", [False, True])
+def test_rows_in_pinocchio_columns_equal_differences_along_pinocchio_integrate(claw, claw_urdf, mimic):
     pin = pytest.importorskip("pinocchio")
-    jmap = pinocchio_joint_map(claw, pin_claw)
+    # mimic=True: pinocchio's JointModelMimic, with no q or v entry of its own
+    model = pin.buildModelFromUrdf(str(claw_urdf), mimic=mimic)
+    assert model.nv == (4 if mimic else 5)
+    jmap = pinocchio_joint_map(claw, model)
     damper = VelocityDamper(claw, di=DI, ds=DS, xi=XI)
     for q in close_configurations(claw, 2, 3):
         q_pin = jmap.from_spq_q(q)
         rows = damper.rows(jmap.update_scene(claw, q_pin))
         G_pin = jmap.columns(rows.G, q_pin)
-        np.testing.assert_allclose(-G_pin, pinocchio_fd_rows(pin, pin_claw, jmap, claw, q_pin, rows.pairs),
+        np.testing.assert_allclose(-G_pin, pinocchio_fd_rows(pin, model, jmap, claw, q_pin, rows.pairs),
                                    atol=FD_TOL)
 
 
