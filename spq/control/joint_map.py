@@ -16,7 +16,8 @@ How each joint is stored:
   (JointModelRUBX/Y/Z) has two q entries (cos θ, sin θ) and one v entry; a free-flyer root has
   q = (x, y, z, qx, qy, qz, qw) and v = (linear, angular) velocity of the base frame, both in the
   BASE (local) frame. pinocchio 4.1's URDF parser (``mimic=False``, its default) reads a
-  ``<mimic>`` joint as an independent joint.
+  ``<mimic>`` joint as an independent joint; with ``mimic=True`` it is a JointModelMimic with no q
+  or v entry of its own, and nothing to map.
 - MuJoCo: hinge and slide joints have one qpos and one qvel entry (a URDF continuous joint is an
   unlimited hinge; its angle is wrapped to [-π, π] here, spq's range for it); a free joint has
   qpos = (x, y, z, qw, qx, qy, qz) and qvel = linear velocity in the WORLD frame, angular velocity
