@@ -81,7 +81,7 @@ def adjacent_links(parent, has_geometry) -> set[tuple[int, int]]:
     return out
 
 
-def _check_scene_pairs(scene, links: list[int], lp_index: dict, adjacent: set) -> np.ndarray:
+def _check_scene_pairs(scene, lp_index: dict, adjacent: set) -> np.ndarray:
     """Per queried pair of the scene, its link pair's index (-1: bodies on one link, or an obstacle).
     ValueError if a pair of bodies on non-adjacent links is not queried (its verdict would be missing)."""
     per_link = defaultdict(int)
@@ -147,7 +147,7 @@ def disabled_pairs_by_sampling(scene, samples: int = DEFAULT_SAMPLES, seed: int 
     pairs = [(links[i], links[j]) for i in range(len(links)) for j in range(i + 1, len(links))]
     lp_index = {pair: k for k, pair in enumerate(pairs)}
     adjacent = adjacent_links(model.parent, links)
-    lp = _check_scene_pairs(scene, links, lp_index, adjacent)
+    lp = _check_scene_pairs(scene, lp_index, adjacent)
     nlp = len(pairs)
     reason = np.full(nlp, "", dtype=object)
     for pair in adjacent:
