@@ -327,7 +327,10 @@ class Scene:
 
             disabled = [(a, b) for a, b, _ in read_srdf(srdf)]
             named = [(b.name, model.link_names[b.link]) for b in bodies]
-            options["skip"] = list(options.get("skip", ())) + list(skip_pairs(named, disabled))
+            # links the model lacks are passed over, as pinocchio's removeCollisionPairs does: an SRDF may
+            # be written for a larger variant of the robot (talos.srdf serves talos_left_arm)
+            options["skip"] = list(options.get("skip", ())) + list(
+                skip_pairs(named, disabled, link_names=model.link_names, unknown="ignore"))
         return cls(model, bodies, policy=policy, **options)
 
     def with_policy(self, policy: str) -> "Scene":
