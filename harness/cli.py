@@ -62,7 +62,8 @@ def _suite(name: str, **values):
 
 
 def cmd_bench(args) -> int:
-    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot", "robots": "robots", "scaling": "scaling"}[args.suite]
+    suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot", "robots": "robots", "scaling": "scaling",
+             "control": "control"}[args.suite]
     extra = {"kind": args.suite} if suite == "bench" else {}
     if args.workers is None:  # the suite's own default (1; 2 for scaling)
         del args.workers
@@ -297,13 +298,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_suite("support"))
 
     p = sub.add_parser("bench", help="throughput benchmarks")
-    p.add_argument("suite", choices=["pch", "stp", "table1", "robot", "robots", "scaling"],
+    p.add_argument("suite", choices=["pch", "stp", "table1", "robot", "robots", "scaling", "control"],
                    help="pch: PCH-PCH, every engine; stp: STP-PCH and STP-STP (spq) beside PCH-PCH; "
                         "table1: the paper's Table I, PCH/STP/CSE pairs with coal's PCH-PCH beside; "
                         "robot: all pairs of a robot per configuration, spq policies beside coal and fcl; "
                         "robots: every robot of example-robot-data, one row each, beside pinocchio and coal; "
                         "scaling: 1 against --workers (default 2) workers on batched queries, a scene sweep and "
-                        "the crosscheck, results compared (a few minutes)")
+                        "the crosscheck, results compared (a few minutes); "
+                        "control: a collision-avoiding QP controller on seeded tasks with spq's pch, stp, cse and auto "
+                        "scenes and pink and mink, and what each volume does to the commands")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)
@@ -325,6 +328,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine-configs", type=int, help="robot suite: configurations coal and fcl run (default: all); "
                                                       "robots suite: configurations coal runs (default 5, quick 2)")
     p.add_argument("--robots", nargs="+", help="robots suite: robot names of example-robot-data (default: all)")
+    p.add_argument("--tasks", type=int, default=20, help="control suite: seeded tasks per robot (default 20)")
+    p.add_argument("--methods", nargs="+", help="control suite: spq-pch spq-stp spq-cse spq-auto (or pch stp cse auto) "
+                                                "pink mink (default: all); control --robots: jvrc1 talos_reduced panda "
+                                                "ur5_robot (default: all four); --steps: 5 ms steps per task (default 600)")
     p.add_argument("--quick", action="store_true", help="robots suite: a few small robots, few configurations")
     p.add_argument("--workers", type=_workers, default=None,
                    help="threads of spq's batched rows (pch, stp) and cold scene rows (robot), the results equal "

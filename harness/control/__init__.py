@@ -1,0 +1,11 @@
+"""The control benchmark (``spq bench control``): what each bounding volume does to the commands of a
+collision-avoiding differential-IK controller.
+
+- :mod:`harness.control.controller`: the QP at a fixed step (hand targets, damped joint limits, joint
+  velocity limits, one velocity-damper row per pair closer than d_i), fed by a distance source.
+- :mod:`harness.control.tasks`: seeded tasks that drive bodies near each other, per robot.
+- :mod:`harness.control.metrics`: per run, the smallest distance on a common geometry, how far the
+  active rows turn, the commands' jumps by cause, time per step.
+- :mod:`harness.control.peers`: pink's SelfCollisionBarrier and mink's CollisionAvoidanceLimit in their
+  own solvers, and the same damper QP fed by pinocchio's or MuJoCo's distances.
+"""
