@@ -330,7 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--robots", nargs="+", help="robots suite: robot names of example-robot-data (default: all)")
     p.add_argument("--tasks", type=int, default=20, help="control suite: seeded tasks per robot (default 20)")
     p.add_argument("--methods", nargs="+", help="control suite: spq-pch spq-stp spq-cse spq-auto (or pch stp cse auto) "
-                                                "pink mink (default: all); control --robots: jvrc1 talos_reduced panda "
+                                                "pink mink pin-damper mujoco-damper (default: all); control --robots: jvrc1 talos_reduced panda "
                                                 "ur5_robot (default: all four); --steps: 5 ms steps per task (default 600)")
     p.add_argument("--quick", action="store_true", help="robots suite: a few small robots, few configurations")
     p.add_argument("--workers", type=_workers, default=None,

@@ -138,6 +138,21 @@ def test_a_start_below_ds_gives_a_stated_status(scenes, frozen):
             assert rows.jacobian[i] @ log.qdot[k] >= params.xi * (params.ds - rows.distance[i]) / (params.di - params.ds) - RATE_TOL
 
 
+def test_the_same_qp_fed_by_pinocchio_or_mujoco_commands_what_spq_pch_commands(scenes, frozen):
+    """The damper QP fed by pinocchio + coal (computeDistances, joint Jacobians at the witness points) and by
+    MuJoCo (mj_geomDistance, mj_jac) on the same hulls commands the same q̇ as fed by spq's PCH scene."""
+    pytest.importorskip("pinocchio")
+    pytest.importorskip("mujoco")
+    from harness.control.bench import run_method
+
+    params = ControlParams()
+    task = make_tasks(scenes.base, ROBOT, 1, seed=3)[0]
+    runs = {m: run_method(m, task, scenes, params, 120, frozen) for m in ("spq-pch", "pin-damper", "mujoco-damper")}
+    assert sum(len(r.pairs) for r in runs["spq-pch"].rows) > 0
+    for m in ("pin-damper", "mujoco-damper"):
+        np.testing.assert_allclose(runs[m].qdot, runs["spq-pch"].qdot, atol=1e-5, err_msg=m)
+
+
 def test_contradictory_rows_give_a_failed_status_not_an_exception():
     """Two rows asking q̇_0 >= 1 and q̇_0 <= -1: proxqp finds no solution; the status says so."""
     x, status = solve_qp(np.eye(2), np.zeros(2), np.array([[-1.0, 0.0], [1.0, 0.0]]), np.array([-1.0, -1.0]),
@@ -165,6 +180,7 @@ def test_the_suite_runs_end_to_end_and_writes_its_files(tmp_path):
     import pandas as pd
 
     runs = pd.read_csv(tmp_path / "control_runs.csv")
-    assert set(runs.method) == {"spq-pch", "spq-stp", "spq-cse", "spq-auto", "pink", "mink"}
+    assert set(runs.method) == {"spq-pch", "spq-stp", "spq-cse", "spq-auto", "pink", "mink", "pin-damper", "mujoco-damper"}
+    assert not runs.note.astype(str).str.startswith("did not run").any(), runs.note.tolist()
     text = (tmp_path / "control.md").read_text()
     assert "What continuity buys a controller" in text and '"xi": 0.5' in text

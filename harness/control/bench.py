@@ -11,11 +11,12 @@ import pandas as pd
 
 from harness.control.controller import ControlParams, Controller, SpqSource
 from harness.control.metrics import CAUSES, SPIKE_RAD_S2, run_metrics, series
-from harness.control.peers import PEERS, run_peer
+from harness.control.peers import DAMPER_PEERS, PEERS, damper_source, run_peer
 from harness.control.scenes import SPQ_POLICIES, check_start, robot_scenes
 from harness.control.tasks import ROBOTS, frozen_mask, make_tasks, setup, start_posture
 
-METHODS = tuple(f"spq-{p}" for p in SPQ_POLICIES) + PEERS
+METHODS = tuple(f"spq-{p}" for p in SPQ_POLICIES) + PEERS + DAMPER_PEERS
+FALLBACK = {"pink": "pin-damper", "mink": "mujoco-damper"}  # a peer that cannot run a robot: its distances in spq's QP
 DEFAULT_ROBOTS = ("jvrc1", "talos_reduced", "panda", "ur5_robot")
 
 
@@ -51,6 +52,9 @@ def run_method(method, task, scenes, params, steps, frozen):
     if method.startswith("spq-"):
         scene = scenes.by_policy[method[4:]]
         return Controller(scene, SpqSource(scene, params, method), params, frozen).run(task, steps)
+    if method in DAMPER_PEERS:
+        source = damper_source(method, task, scenes.base, scenes.urdf, params, frozen)
+        return Controller(scenes.base, source, params, frozen).run(task, steps)
     return run_peer(method, task, scenes.base, scenes.urdf, params, steps, frozen)
 
 
@@ -85,16 +89,26 @@ def run(robots, tasks: int, steps: int, seed: int, methods, params: ControlParam
                 for method in methods:
                     try:
                         log = run_method(method, task, scenes, params, steps, frozen)
-                    except (ImportError, ValueError, RuntimeError) as exc:  # a method that cannot run this robot
-                        rows.append({"method": method, "robot": robot, "task": task.name,
-                                     "note": f"did not run: {type(exc).__name__}: {exc}"})
-                        bar.update()
-                        continue
+                    except (ImportError, ValueError, RuntimeError, AttributeError) as exc:  # cannot run this robot
+                        reason = f"{type(exc).__name__}: {exc}"
+                        rows.append({"method": method, "robot": robot, "task": task.name, "note": f"did not run: {reason}"})
+                        fallback = FALLBACK.get(method)
+                        if fallback is None or fallback in methods:
+                            bar.update()
+                            continue
+                        try:
+                            log = run_method(fallback, task, scenes, params, steps, frozen)
+                            log.note = f"ran in place of {method} ({reason})"
+                        except (ImportError, ValueError, RuntimeError, AttributeError) as exc2:
+                            rows.append({"method": fallback, "robot": robot, "task": task.name,
+                                         "note": f"did not run: {type(exc2).__name__}: {exc2}"})
+                            bar.update()
+                            continue
                     row = run_metrics(log, params, scenes.base)
                     row["kind"] = task.kind
                     rows.append(row)
-                    acc[method].append(series(log, params)["acc"])
-                    logs[(robot, task.name, method)] = (log.qdot[:, ~frozen], [n for n, f in zip(model.joint_names, frozen) if not f])
+                    acc.setdefault(log.method, []).append(series(log, params)["acc"])
+                    logs[(robot, task.name, log.method)] = (log.qdot[:, ~frozen], [n for n, f in zip(model.joint_names, frozen) if not f])
                     bar.update()
     runs = pd.DataFrame(rows)
     result = BenchResult(runs, pd.DataFrame(robot_rows), {m: np.concatenate(v) if v else np.zeros(0) for m, v in acc.items()})

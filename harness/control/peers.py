@@ -319,7 +319,7 @@ def mjcf(scene, q0, frozen, hands) -> str:
                      f'range="{float(m.lower[j])!r} {float(m.upper[j])!r}" limited="true"/>')
         inner = "".join(geoms_of.get(link, [])) + "".join(sites.get(link, []))
         kids = "".join(body(c) for c in children.get(link, []))
-        return f'<body name="{m.link_names[link]}" {_pose_attrs(pose)}>{joint}{inner}{kids}</body>'
+        return f'<body name="link_{m.link_names[link]}" {_pose_attrs(pose)}>{joint}{inner}{kids}</body>'  # 'world' is MuJoCo's
 
     tree = "".join(body(r) for r in children.get(-1, []))
     world = "".join(geoms_of.get(-1, []))
@@ -339,6 +339,8 @@ class MjModel:
             if "volume" not in str(exc).lower() and "inertia" not in str(exc).lower():
                 raise
             self.model = mujoco.MjModel.from_xml_string(xml.replace("<mesh ", '<mesh inertia="shell" '))
+        # geom ids follow the MJCF tree's order, not spq's bodies': geom_of[body index] -> geom id
+        self.geom_of = np.array([self.model.geom(f"g{i}").id for i in range(len(scene.bodies))], dtype=np.int64)
         names = scene.model.joint_names
         self.qadr, self.vadr, self.src = [], [], []
         for jid in range(self.model.njnt):
@@ -382,7 +384,7 @@ def run_mink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
     collision = mink.CollisionAvoidanceLimit(model, geom_pairs, gain=params.xi * params.dt**2 / (params.di - params.ds),
                                              minimum_distance_from_collisions=params.ds,
                                              collision_detection_distance=params.di)
-    ours = [(min(a, b), max(a, b)) for a, b in np.asarray(scene.pairs).tolist()]
+    ours = [(min(a, b), max(a, b)) for a, b in mm.geom_of[np.asarray(scene.pairs)].tolist()]
     dropped = len(ours) - len(collision.geom_id_pairs)
     if set(collision.geom_id_pairs) != set(ours):  # mink drops welded / parent-child bodies: keep spq's pairs
         collision.geom_id_pairs = ours
@@ -435,7 +437,7 @@ def _mink_rows(scene, q, mm, config, params, n, fromto, normal, jac1, jac2, mujo
     """Rows of the pairs with d < di from MuJoCo's distances (mj_geomDistance) and mj_jac, spq's columns."""
     model, data = mm.model, config.data
     pairs, dist, rows, wa, wb = [], [], [], [], []
-    for p, (a, b) in enumerate(np.asarray(scene.pairs).tolist()):
+    for p, (a, b) in enumerate(mm.geom_of[np.asarray(scene.pairs)].tolist()):
         d = mujoco.mj_geomDistance(model, data, a, b, params.di, fromto)
         if d >= params.di:
             continue
@@ -495,3 +497,126 @@ def run_peer(name: str, task, scene, urdf, params, steps, frozen) -> RunLog:
     if name == "mink":
         return run_mink(task, scene, urdf, params, steps, frozen)
     raise ValueError(f"unknown peer {name!r}; choose from {list(PEERS)}")
+
+
+# --- the same damper QP fed by a peer's distances and Jacobians -----------------------------------
+DAMPER_PEERS = ("pin-damper", "mujoco-damper")
+
+
+def _point_jacobian_from_joint(J6: np.ndarray, origin: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """(3, nv) linear Jacobian of ``point`` from a joint's LOCAL_WORLD_ALIGNED Jacobian (6, nv) at its
+    origin: v_p = v_o + ω × (p − o)."""
+    r = point - origin
+    skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return J6[:3] - skew @ J6[3:]
+
+
+class PinocchioSource:
+    """Damper rows from pinocchio + coal: ``computeDistances`` (forward kinematics, placements and every
+    pair's coal distance in one call), then for each pair within d_i ``computeJointJacobians`` /
+    ``getJointJacobian`` shifted to the two witness points and projected on the normal."""
+
+    name = "pin-damper"
+
+    def __init__(self, scene, urdf, q0, frozen, hands, params):
+        self.pin = _need("pinocchio", "pin")
+        self.scene, self.params = scene, params
+        self.pm = PinModel(scene, urdf, q0, frozen, hands)
+        self.n = scene.model.ndof
+        geometry = self.pm.geometry
+        self.joints = [(geometry.geometryObjects[int(a)].parentJoint, geometry.geometryObjects[int(b)].parentJoint)
+                       for a, b in np.asarray(scene.pairs).tolist()]
+
+    def reset(self) -> None:
+        pass
+
+    def rows(self, q) -> tuple[StepRows, float]:
+        pin, pm, params = self.pin, self.pm, self.params
+        start = time.perf_counter()
+        q_pin = pm.to_pin(q)
+        pin.computeDistances(pm.model, pm.data, pm.geometry, pm.gdata, q_pin)
+        results = pm.gdata.distanceResults
+        d = np.fromiter((r.min_distance for r in results), float, len(results))
+        close = np.flatnonzero(d < params.di)
+        rows = np.zeros((len(close), pm.model.nv))
+        wa, wb = np.zeros((len(close), 3)), np.zeros((len(close), 3))
+        if len(close):
+            pin.computeJointJacobians(pm.model, pm.data, q_pin)
+            frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            for i, p in enumerate(close):
+                r = results[int(p)]
+                pa, pb = np.array(r.getNearestPoint1()), np.array(r.getNearestPoint2())
+                n = (pb - pa) / d[p] if d[p] > 1e-9 else np.array(r.normal)
+                row = np.zeros(pm.model.nv)
+                for joint, point, sign in ((self.joints[p][1], pb, 1.0), (self.joints[p][0], pa, -1.0)):
+                    if joint > 0:
+                        J6 = pin.getJointJacobian(pm.model, pm.data, joint, frame)
+                        row += sign * (n @ _point_jacobian_from_joint(J6, pm.data.oMi[joint].translation, point))
+                rows[i], wa[i], wb[i] = row, pa, pb
+        seconds = time.perf_counter() - start
+        J = np.array([pm.to_spq_velocity(r, self.n) for r in rows]).reshape(len(close), self.n)
+        la, lb = body_frame_points(self.scene, q, close, wa, wb)
+        return StepRows(close.astype(np.int64), d[close], J, la, lb), seconds
+
+
+class MujocoSource:
+    """Damper rows from MuJoCo: ``mj_kinematics`` + ``mj_comPos``, a bounding-sphere broadphase (as mink's),
+    ``mj_geomDistance`` per pair (distmax d_i) and ``mj_jac`` at the two witness points."""
+
+    name = "mujoco-damper"
+
+    def __init__(self, scene, q0, frozen, hands, params):
+        self.mujoco = _need("mujoco", "mujoco")
+        self.scene, self.params = scene, params
+        self.mm = MjModel(scene, q0, frozen, hands)
+        self.data = self.mujoco.MjData(self.mm.model)
+        self.n = scene.model.ndof
+        self.pairs = self.mm.geom_of[np.asarray(scene.pairs, dtype=np.int64)]
+        self.rsum = self.mm.model.geom_rbound[self.pairs[:, 0]] + self.mm.model.geom_rbound[self.pairs[:, 1]]
+        nv = self.mm.model.nv
+        self._fromto, self._jac = np.zeros(6), (np.zeros((3, nv)), np.zeros((3, nv)))
+
+    def reset(self) -> None:
+        pass
+
+    def rows(self, q) -> tuple[StepRows, float]:
+        mujoco, model, data, params = self.mujoco, self.mm.model, self.data, self.params
+        start = time.perf_counter()
+        data.qpos[:] = self.mm.to_mj(q)
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        gap = np.linalg.norm(data.geom_xpos[self.pairs[:, 0]] - data.geom_xpos[self.pairs[:, 1]], axis=1) - self.rsum
+        pairs, dist, rows, wa, wb = [], [], [], [], []
+        fromto, (ja, jb) = self._fromto, self._jac
+        for p in np.flatnonzero(gap < params.di):
+            a, b = int(self.pairs[p, 0]), int(self.pairs[p, 1])
+            d = mujoco.mj_geomDistance(model, data, a, b, params.di, fromto)
+            if d >= params.di:
+                continue
+            n = fromto[3:] - fromto[:3]
+            norm = np.linalg.norm(n)
+            n = n / norm if norm > 1e-12 else n
+            mujoco.mj_jac(model, data, ja, None, fromto[:3], model.geom_bodyid[a])
+            mujoco.mj_jac(model, data, jb, None, fromto[3:], model.geom_bodyid[b])
+            row = (1.0 if d >= 0 else -1.0) * (n @ (jb - ja))  # mink's convention: fromto points along -n inside
+            pairs.append(p)
+            dist.append(d)
+            rows.append(row)
+            wa.append(fromto[:3].copy())
+            wb.append(fromto[3:].copy())
+        seconds = time.perf_counter() - start
+        if not pairs:
+            return StepRows.empty(self.n), seconds
+        pairs = np.array(pairs, dtype=np.int64)
+        J = np.array([self.mm.to_spq_velocity(r, self.n) for r in rows])
+        la, lb = body_frame_points(self.scene, q, pairs, np.array(wa), np.array(wb))
+        return StepRows(pairs, np.array(dist), J, la, lb), seconds
+
+
+def damper_source(name: str, task, scene, urdf, params, frozen):
+    """The distance source of a damper peer (DAMPER_PEERS) for ``task`` on ``scene``."""
+    if name == "pin-damper":
+        return PinocchioSource(scene, urdf, task.q0, frozen, task.hands, params)
+    if name == "mujoco-damper":
+        return MujocoSource(scene, task.q0, frozen, task.hands, params)
+    raise ValueError(f"unknown damper peer {name!r}; choose from {list(DAMPER_PEERS)}")

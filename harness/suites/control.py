@@ -18,7 +18,7 @@ class Config:
     tasks: int = 20  # seeded tasks per robot
     steps: int = 600  # 5 ms steps per task (3 s)
     seed: int = 0
-    methods: list[str] | None = None  # None: spq-pch, spq-stp, spq-cse, spq-auto, pink, mink
+    methods: list[str] | None = None  # None: spq-pch, spq-stp, spq-cse, spq-auto, pink, mink, pin-damper, mujoco-damper
     progress: bool = False
 
 
@@ -101,14 +101,16 @@ def _notes(config, params, result) -> str:
         f"over every pair (gain ξ/(d_i - d_s), d_min = d_s) on pinocchio + coal hulls; mink: mink.solve_ik "
         f"({MINK_SOLVER}) with FrameTasks, PostureTask, ConfigurationLimit, VelocityLimit and CollisionAvoidanceLimit "
         "(detection d_i, minimum d_s, gain set to the same damper) on a MuJoCo model of the same hulls (harness/control/"
-        "peers.py). Pairs: the robot's SRDF-pruned set (example-robot-data's SRDF, else spq's sampled one) where "
+        "peers.py); pin-damper and mujoco-damper: spq's QP fed by pinocchio + coal (computeDistances, joint Jacobians "
+        "shifted to the witness points) and by MuJoCo (mj_geomDistance, mj_jac) on the same hulls, which also stand in "
+        "for pink or mink on a robot they cannot run (a run's note says so). Pairs: the robot's SRDF-pruned set (example-robot-data's SRDF, else spq's sampled one) where "
         "available, else adjacent links skipped: the same for every method (control_robots.csv says which). "
         f"Measures (harness/control/metrics.py): a closest-feature switch is a witness point jumping in its body's "
         f"frame: over {FEATURE_JUMP_M * 1e3:g} mm in one step and over {FEATURE_JUMP_RATIO:g} times its move at the "
         "steps before and after; a spike is ‖Δq̇‖/dt over {SPIKE_RAD_S2:g} "
         "rad/s²; the smallest distance is every trajectory's on the same PCH scene. Time: distances + Jacobians "
         "(spq: the VelocityDamper call; pink: Configuration.update and the barrier's rows; mink: "
-        "Configuration.update and the collision limit's rows) and QP (the rest of the step: task Jacobians, QP "
+        "Configuration.update and the collision limit's rows; pin-damper, mujoco-damper: the distances and rows) and QP (the rest of the step: task Jacobians, QP "
         "build and solve). "
         + (f"Joint-velocity chart: {result.trace_choice}." if result.trace_choice else ""))
 
