@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from spq.kernels import jacobian as kjac
+from spq.kernels.kinematics import forward_kinematics
 from spq.kernels import scene as kscene
 from spq.kernels.batch import query_scratch
 from spq.kernels.kinds import IDATA_DTYPE, POLYTOPE, STP
@@ -475,6 +476,12 @@ class Scene:
         self._pair_slots = np.array([[slot_of[(a, sa)], slot_of[(b, sb)]]
                                      for (a, b), (sa, sb) in zip(self.pairs, self.pair_kinds)],
                                     dtype=np.int64).reshape(-1, 2)
+        # one thread's scratch, kept: a control loop's call then allocates only its results
+        body_link = np.array([b.link for b in self.bodies], dtype=np.int64)
+        self._pair_stop = kjac.common_ancestors(self.model.parent, body_link[self.pairs[:, 0]],
+                                                body_link[self.pairs[:, 1]])
+        self._links, self._axes = self._link_scratch(), np.empty((self.model.nlinks, 3))
+        self._slot_scratch, self._query_scratch = np.empty((ns, 4, 4)), query_scratch()
         self.reset()
 
     @staticmethod
@@ -525,12 +532,14 @@ class Scene:
             raise ValueError(f"out must be a writeable C-contiguous float64 array of shape {shape}")
         bounds = [(0, len(qs))] if coherent else chunk_bounds(len(qs), workers, MIN_SCENE_CONFIGURATIONS)
         if len(bounds) == 1:
-            self._sweep(qs, coherent, prune, self._pair_ints, self._pair_floats, out)
+            self._sweep(qs, coherent, prune, self._pair_ints, self._pair_floats, out,
+                        (self._links, self._slot_scratch, self._query_scratch))
             return out
 
         def chunk(start: int, stop: int):
             ints, floats = self._pair_ints.copy(), self._pair_floats.copy()
-            self._sweep(qs[start:stop], False, prune, ints, floats, out[start:stop])
+            scratch = (self._link_scratch(), np.empty_like(self._slot_scratch), query_scratch())  # a thread's own
+            self._sweep(qs[start:stop], False, prune, ints, floats, out[start:stop], scratch)
             return ints, floats
 
         states = map_chunks(chunk, bounds, workers)
@@ -541,16 +550,16 @@ class Scene:
         return out
 
     def _sweep(self, qs: np.ndarray, coherent: bool, prune: float, pair_ints: np.ndarray, pair_floats: np.ndarray,
-               out: np.ndarray) -> None:
-        """One compiled call over qs with the given per-pair warm-start state, into out (own scratch)."""
+               out: np.ndarray, scratch: tuple) -> None:
+        """One compiled call over qs with the given per-pair warm-start state, into out; scratch: (links,
+        slot poses, query scratch), one set per thread."""
         m = self.model
         kscene.scene_distances(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
                                m.q_offset, self.base, qs,
                                self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin,
                                self._slot_frange, self._slot_irange, self._fpool, self._ipool, self._slot_centre,
                                self._slot_radius, self._pair_slots, pair_ints, pair_floats,
-                               bool(coherent), float(prune), self._link_scratch(),
-                               np.empty((len(self._slot_link), 4, 4)), *query_scratch(), out)
+                               bool(coherent), float(prune), scratch[0], scratch[1], *scratch[2], out)
 
     def _link_scratch(self) -> np.ndarray:
         """(nlinks + 1, 4, 4) scratch for the link poses; the last row, the world's pose, is the identity
@@ -579,7 +588,7 @@ class Scene:
             raise ValueError(f"jac_out must be a writeable C-contiguous float64 array of shape {shape}")
         kjac.scene_jacobians(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
                              m.q_offset, self.base, self.floating_base, qs, self._slot_link, self._pair_slots,
-                             bool(signed), out, self._link_scratch(), np.empty((m.nlinks, 3)), jac)
+                             self._pair_stop, bool(signed), out, self._links, self._axes, jac)
         return jac
 
     def link_jacobian(self, q, link, point) -> np.ndarray:
@@ -600,8 +609,8 @@ class Scene:
         m = self.model
         out = np.empty((6, self.nv))
         kjac.point_jacobian(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
-                            m.q_offset, self.base, self.floating_base, q, int(link), point, self._link_scratch(),
-                            np.empty((m.nlinks, 3)), out)
+                            m.q_offset, self.base, self.floating_base, q, int(link), point, self._links, self._axes,
+                            out)
         return out
 
     def _check_prune(self, prune) -> float:
@@ -662,8 +671,13 @@ class Scene:
         return out, self._jacobians(checked, out, signed, jac_out)
 
     def link_poses(self, q) -> np.ndarray:
-        """(nlinks, 4, 4) world poses of the links at q."""
-        return self.model.link_poses(q, base=self.base)
+        """(nlinks, 4, 4) world poses of the links at q (ValueError for a q the model rejects)."""
+        m = self.model
+        out = np.empty((m.nlinks, 4, 4))
+        # the base was checked when it was set: a control loop calls this every step
+        forward_kinematics(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
+                           m.q_offset, m.check_configuration(q), self.base, out)
+        return out
 
     def body_poses(self, q) -> np.ndarray:
         """(nbodies, 4, 4) world poses of the bodies' hull frames at q."""

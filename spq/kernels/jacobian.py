@@ -12,6 +12,11 @@ minus that from the A side. A floating base adds six leading columns, the base's
 world frame (v the velocity of the base frame's origin b): the point moves with v + ω × (p − b).
 
 A link index ``>= parent.shape[0]`` stands for the world (static obstacles): its points do not move.
+
+A joint that moves both bodies (one above their lowest common ancestor link, the base too) adds
+a·((p_B − o) × n) − a·((p_A − o) × n) = a·((p_B − p_A) × n) = 0, since p_B − p_A = d n: moving a pair
+rigidly leaves its distance alone. So each side's walk stops at the pair's common ancestor (``stop``),
+which halves the work on a humanoid's arm pairs; a pair with an obstacle walks to the root, base included.
 Each moving joint's world axis and origin come from the link poses after forward kinematics: link i's
 pose is T_parent · origin_i · motion(q), and a joint's motion leaves its own axis and (for a rotation)
 its origin in place, so the axis is R_i · axis_i and the origin is T_i's translation.
@@ -30,6 +35,7 @@ STATUS_SEPARATED = 0
 STATUS_TOUCHING = 1
 STATUS_OVERLAPPING = 2
 PRUNED = -1  # as spq.kernels.scene.PRUNED (not imported: that module's kernels need not load here)
+TO_ROOT = -1  # a pair's stop link when it has a side in the world: walk to the root, the base's columns included
 
 
 @kernel
@@ -43,17 +49,18 @@ def joint_axes(links, joint_axis, out):
 
 
 @kernel
-def add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, link, p, n, sign, row):
-    """row += sign · nᵀ J(p) for the world point p (3,) fixed to ``link``, along the world direction n (3,).
+def add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, link, stop, p, n, sign,
+                  row):
+    """row += sign · nᵀ J(p) for the world point p (3,) fixed to ``link``, along the world direction n (3,),
+    over the joints from ``link`` up to, not including, link ``stop`` (TO_ROOT: every joint and the base).
 
     row (nv,): the base's six columns first when ``floating``, then the joints'. A link index outside
     the model (the world) adds nothing."""
     nlinks = parent.shape[0]
     if link < 0 or link >= nlinks:
         return
-    first = 0
-    if floating:
-        first = 6
+    first = 6 if floating else 0
+    if floating and stop == TO_ROOT:
         b0 = p[0] - base[0, 3]
         b1 = p[1] - base[1, 3]
         b2 = p[2] - base[2, 3]
@@ -65,7 +72,7 @@ def add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, 
         row[4] += sign * (b2 * n[0] - b0 * n[2])
         row[5] += sign * (b0 * n[1] - b1 * n[0])
     l = link
-    while l >= 0:
+    while l >= 0 and l != stop:
         j = q_index[l]
         if j >= 0:
             a0 = axes[l, 0]
@@ -84,8 +91,9 @@ def add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, 
 
 @kernel
 def pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, slot_link, pair_slots,
-                   signed, out, jac):
-    """Every pair's row ∂d/∂q into jac (npairs, nv) from its query result out (npairs, OUT_SIZE).
+                   pair_stop, signed, out, jac):
+    """Every pair's row ∂d/∂q into jac (npairs, nv) from its query result out (npairs, OUT_SIZE);
+    pair_stop (npairs,): each pair's lowest common ancestor link, or TO_ROOT.
 
     A pruned pair gets a zero row; a pair whose result defines no gradient (failed, an overlap of an
     unsigned query, or a non-finite normal or witness point) gets a row of NaN."""
@@ -107,14 +115,14 @@ def pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base,
             continue
         n = res[OUT_NORMAL:OUT_NORMAL + 3]
         add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating,
-                      slot_link[pair_slots[p, 0]], res[OUT_POINT_A:OUT_POINT_A + 3], n, -1.0, row)
+                      slot_link[pair_slots[p, 0]], pair_stop[p], res[OUT_POINT_A:OUT_POINT_A + 3], n, -1.0, row)
         add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating,
-                      slot_link[pair_slots[p, 1]], res[OUT_POINT_B:OUT_POINT_B + 3], n, 1.0, row)
+                      slot_link[pair_slots[p, 1]], pair_stop[p], res[OUT_POINT_B:OUT_POINT_B + 3], n, 1.0, row)
 
 
 @kernel(nogil=True)
 def scene_jacobians(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, floating,
-                    qs, slot_link, pair_slots, signed, out, links, axes, jac):
+                    qs, slot_link, pair_slots, pair_stop, signed, out, links, axes, jac):
     """:func:`pair_jacobians` for each of N configurations qs (N, ndof) and their results out
     (N, npairs, OUT_SIZE) into jac (N, npairs, nv); links (>= nlinks, 4, 4), axes (nlinks, 3): scratch.
 
@@ -125,7 +133,7 @@ def scene_jacobians(parent, joint_type, joint_origin, joint_axis, q_index, q_mul
                            links)
         joint_axes(links, joint_axis, axes)
         pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, slot_link, pair_slots,
-                       signed, out[i], jac[i])
+                       pair_stop, signed, out[i], jac[i])
 
 
 @kernel
@@ -179,3 +187,23 @@ def point_jacobian(parent, joint_type, joint_origin, joint_axis, q_index, q_mult
                 out[4, c] += a1
                 out[5, c] += a2
         l = parent[l]
+
+
+def common_ancestors(parent, link_a, link_b):
+    """(npairs,) int64: the lowest common ancestor link of each pair of links (link_a, link_b: (npairs,),
+    -1 for a body in the world, whose pair gets TO_ROOT). Python: once per scene."""
+    import numpy as np
+
+    out = np.empty(len(link_a), dtype=np.int64)
+    for k, (a, b) in enumerate(zip(link_a, link_b)):
+        if a < 0 or b < 0:
+            out[k] = TO_ROOT
+            continue
+        above_a = set()
+        while a >= 0:
+            above_a.add(int(a))
+            a = parent[a]
+        while b >= 0 and int(b) not in above_a:
+            b = parent[b]
+        out[k] = b if b >= 0 else TO_ROOT
+    return out
