@@ -591,6 +591,29 @@ class Scene:
                              self._pair_stop, bool(signed), out, self._links, self._axes, jac)
         return jac
 
+    def frame_jacobians(self, q, frames) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Points fixed to links, as a controller's tasks need them every step, with one check of q.
+
+        frames: [(link index, (3,) point in that link's frame, m)]. Returns (points (h, 3) world, m;
+        rotations (h, 3, 3) of their links, world; jacobians (h, 6, nv) as :meth:`link_jacobian`)."""
+        q = self.model.check_configuration(q)
+        m = self.model
+        links = self._links
+        h = len(frames)
+        points, rotations, jac = np.empty((h, 3)), np.empty((h, 3, 3)), np.empty((h, 6, self.nv))
+        forward_kinematics(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
+                           m.q_offset, q, self.base, links)
+        for k, (link, local) in enumerate(frames):
+            link = int(link)
+            if not 0 <= link < m.nlinks:
+                raise ValueError(f"frame {k}: link must be an index from 0 to {m.nlinks - 1}; got {link}")
+            rotations[k] = links[link, :3, :3]
+            points[k] = rotations[k] @ np.asarray(local, dtype=np.float64) + links[link, :3, 3]
+            kjac.point_jacobian(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
+                                m.q_offset, self.base, self.floating_base, q, link, points[k], links, self._axes,
+                                jac[k])
+        return points, rotations, jac
+
     def link_jacobian(self, q, link, point) -> np.ndarray:
         """(6, nv) Jacobian at q of the world point ``point`` (3,) moving with ``link`` (an index into
         ``model.link_names``, or its name): rows 0..2 the point's linear velocity, rows 3..5 the link's

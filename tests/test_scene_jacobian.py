@@ -199,6 +199,10 @@ def test_link_jacobian_equals_differences_of_the_link_pose():
         w = Rotation.from_matrix(Tp[:3, :3] @ Tm[:3, :3].T).as_rotvec() / (2 * H)
         assert np.allclose(J[:3, 6 + j], v, atol=1e-8) and np.allclose(J[3:, 6 + j], w, atol=1e-8)
     assert np.allclose(J[:3, :3], np.eye(3)) and np.allclose(J[3:, 3:6], np.eye(3))
+    points, rotations, jacobians = scene.frame_jacobians(q, [(link, local), (2, np.zeros(3))])
+    assert np.allclose(points[0], pose[:3, :3] @ local + pose[:3, 3], atol=1e-15)
+    assert np.allclose(rotations[0], pose[:3, :3], atol=1e-15) and np.array_equal(jacobians[0], J)
+    assert np.array_equal(jacobians[1], scene.link_jacobian(q, 2, scene.link_poses(q)[2][:3, 3]))
 
 
 def test_bad_input_is_a_clear_value_error():
