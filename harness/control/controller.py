@@ -44,6 +44,8 @@ class ControlParams:
     to the start posture that resolves the redundancy. damping: Tikhonov weight on q̇.
     joint_di, joint_ds: the joint-limit damper's interaction and safety gaps (rad, or m for a prismatic
     joint). velocity_limit: cap on every joint's speed (rad/s; the URDF's limit where lower).
+    task_speed_limit: the position feedback K_p (x_ref − x) is clipped to this speed (m/s), so that a hand
+    held back by a damper does not push ever harder as its error grows.
     """
 
     dt: float = 0.005
@@ -60,13 +62,14 @@ class ControlParams:
     joint_di: float = 0.15
     joint_ds: float = 0.02
     velocity_limit: float = 2.0
+    task_speed_limit: float = 0.5
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"control parameter {f.name} must be a finite number >= 0; got {v}")
-        if self.dt <= 0 or self.xi <= 0 or self.velocity_limit <= 0:
+        if self.dt <= 0 or self.xi <= 0 or self.velocity_limit <= 0 or self.task_speed_limit <= 0:
             raise ValueError(f"dt, xi and velocity_limit must be > 0; got {self.dt}, {self.xi}, {self.velocity_limit}")
         if not self.ds < self.di:
             raise ValueError(f"the damper needs 0 <= ds < di (m); got ds={self.ds}, di={self.di}")
@@ -137,17 +140,16 @@ class SpqSource:
         return StepRows(p, damper.distance, damper.jacobian, wa, wb, damper.n_failed), seconds
 
 
-def point_jacobian(scene, q, link: int, point) -> np.ndarray:
-    """(6, n) world-frame Jacobian of the world point ``point`` moving with link ``link`` (rows 0..2 its
-    velocity, 3..5 the link's angular velocity), spq's q order: Scene.link_jacobian."""
-    return scene.link_jacobian(q, int(link), np.asarray(point, dtype=np.float64))
-
-
 def rotation_error(R_target: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """(3,) world-frame rotation vector taking R to R_target (rad)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(R_target @ R.T).as_rotvec()
+    """(3,) world-frame rotation vector taking R to R_target (rad): the log map of R_target Rᵀ, in closed
+    form (scipy's Rotation.from_matrix validated and orthogonalised its input, a third of a step's time)."""
+    E = R_target @ R.T
+    vee = 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])  # sin θ · axis
+    s = float(np.linalg.norm(vee))
+    angle = float(np.arctan2(s, 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0)))
+    if s < 1e-12:  # no rotation (a half turn cannot occur: the hands start at their target orientation)
+        return vee
+    return vee * (angle / s)
 
 
 def urdf_velocity_limits(model, cap: float) -> np.ndarray:
@@ -244,6 +246,7 @@ class Controller:
         m = scene.model
         self.n = m.ndof
         self.frozen = np.zeros(self.n, bool) if frozen is None else np.asarray(frozen, bool)
+        self.active = np.flatnonzero(~self.frozen)
         self.vmax = urdf_velocity_limits(m, params.velocity_limit)
         self.lower, self.upper = m.lower.copy(), m.upper.copy()
 
@@ -251,23 +254,30 @@ class Controller:
         """(P, c) of the QP at q: hands [(link, point in the link frame)], refs / ref_vels (h, 3);
         R_ref: (h, 3, 3) the hands' target orientations (their start), or None."""
         p = self.params
-        P_hands = []
         P = (p.damping + p.posture_weight) * np.eye(self.n)
         c = -p.posture_weight * p.posture_gain * (q0 - q)
-        links = self.scene.link_poses(q)
-        for (link, local), x_ref, v_ref in zip(hands, refs, ref_vels):
-            x = links[link][:3, :3] @ local + links[link][:3, 3]
-            J = point_jacobian(self.scene, q, link, x)
-            J[:, self.frozen] = 0.0
-            v = v_ref + p.position_gain * (x_ref - x)
+        points, rotations, jacobians = self.scene.frame_jacobians(q, hands)  # one kinematics pass
+        jacobians[:, :, self.frozen] = 0.0
+        for k, (x, J, x_ref, v_ref) in enumerate(zip(points, jacobians, refs, ref_vels)):
+            v = v_ref + p.position_gain * clipped_error(x_ref - x, p)
             P += p.position_weight * J[:3].T @ J[:3]
             c -= p.position_weight * J[:3].T @ v
             if p.orientation_weight > 0 and R_ref is not None:  # back to the hand's start orientation
-                w = p.orientation_gain * rotation_error(R_ref[len(P_hands)], links[link][:3, :3])
+                w = p.orientation_gain * rotation_error(R_ref[k], rotations[k])
                 P += p.orientation_weight * J[3:].T @ J[3:]
                 c -= p.orientation_weight * J[3:].T @ w
-            P_hands.append(link)
         return P, c
+
+    def solve(self, P, c, G, h, lb, ub, init) -> tuple[np.ndarray, str]:
+        """(q̇ (n,), status) of the QP over the active joints only: a frozen joint's q̇ is 0, so its
+        variable, its rows of P and its columns of G drop out (the same minimiser, a smaller QP for
+        proxqp: JVRC-1's 17 active joints of 34). A failure gives q̇ = 0 and its status."""
+        a = self.active
+        x, status = solve_qp(P[np.ix_(a, a)], c[a], G[:, a], h, lb[a], ub[a], init[a])
+        qdot = np.zeros(self.n)
+        if x is not None:
+            qdot[a] = x
+        return qdot, status
 
     def run(self, task, steps: int) -> RunLog:
         """Run ``task`` (harness.control.tasks.Task) for ``steps`` steps from rest at task.q0."""
@@ -287,12 +297,9 @@ class Controller:
             refs, vels = task.reference(k * p.dt, start_points)
             P, c = self.objective(q, hands, refs, vels, q0, R_ref)
             lb, ub, damped = joint_bounds(q, self.lower, self.upper, self.vmax, p, self.frozen)
-            G = -rows.jacobian.copy()
-            G[:, self.frozen] = 0.0
             h = p.xi * (rows.distance - p.ds) / (p.di - p.ds)
-            x, status = solve_qp(P, c, G, h, lb, ub, qdot)
+            qdot, status = self.solve(P, c, -rows.jacobian, h, lb, ub, qdot)
             t_qp = time.perf_counter() - t0
-            qdot = np.zeros(self.n) if x is None else x
             _record(log, k, rows, qdot, status, t_dist, t_qp, damped, lb, ub)
             q = q + p.dt * qdot
             q, log.clipped = _clip(q, self.lower, self.upper, log.clipped)
