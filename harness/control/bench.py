@@ -178,6 +178,27 @@ def _fmt(v, unit="") -> str:
     return "n/a" if v is None or not np.isfinite(v) else f"{v:.3g}{unit}"
 
 
+def which_ran(runs: pd.DataFrame) -> list[str]:
+    """Per robot: the methods that ran (how many tasks) and those that did not (why)."""
+    if runs.empty:
+        return ["No run."]
+    lines = []
+    notes = runs.note.astype(str) if "note" in runs else pd.Series([""] * len(runs))
+    failed = notes.str.startswith("did not run")
+    for robot, g in runs.groupby("robot", sort=False):
+        ok = g[~failed[g.index]]
+        bad = g[failed[g.index]]
+        ran = ", ".join(f"{m} {n}" for m, n in ok.groupby("method", sort=False).size().items())
+        text = f"{robot}: ran {ran or 'nothing'}"
+        for m, gm in bad.groupby("method", sort=False):
+            text += f"; {m} did not run ({len(gm)} tasks): {notes[gm.index[0]][len('did not run: '):]}"
+        instead = ok[notes[ok.index].str.startswith("ran in place of")]
+        for m, gm in instead.groupby("method", sort=False):
+            text += f"; {m} ran in place of a peer on {len(gm)} tasks"
+        lines.append(text + ".")
+    return lines
+
+
 def continuity_note(table: pd.DataFrame) -> list[str]:
     """'What continuity buys a controller': sentences from the measured figures, per robot."""
     lines = ["## What continuity buys a controller", ""]
@@ -209,6 +230,12 @@ def continuity_note(table: pd.DataFrame) -> list[str]:
                      f"{each('qp_failures')}; time per step (median, ms: distances + Jacobians / QP): "
                      + ", ".join(f"{m} {_fmt(by.loc[m, 'ms_distance'])} / {_fmt(by.loc[m, 'ms_qp'])}" for m in by.index)
                      + ".")
+        steps = {m: by.loc[m, "ms_step"] for m in by.index}
+        if "spq-pch" in steps:
+            base = steps["spq-pch"]
+            lines.append("- whole control step (median ms: distances, Jacobians, task and QP): " + ", ".join(
+                f"{m} {_fmt(v)}" + (f" ({_fmt(v / base)}x spq-pch's)" if m != "spq-pch" and base > 0 else "")
+                for m, v in steps.items()) + ".")
         if {"spq-pch", "spq-stp"} <= set(by.index):
             p, s = by.loc["spq-pch"], by.loc["spq-stp"]
             ratio = p.row_turn_p99_median / s.row_turn_p99_median if s.row_turn_p99_median > 0 else np.nan

@@ -140,6 +140,13 @@ class SpqSource:
         return StepRows(p, damper.distance, damper.jacobian, wa, wb, damper.n_failed), seconds
 
 
+def clipped_error(error: np.ndarray, params: ControlParams) -> np.ndarray:
+    """The position error (3,) m, shortened to task_speed_limit / position_gain when longer."""
+    cap = params.task_speed_limit / params.position_gain if params.position_gain > 0 else np.inf
+    norm = float(np.linalg.norm(error))
+    return error if norm <= cap else error * (cap / norm)
+
+
 def rotation_error(R_target: np.ndarray, R: np.ndarray) -> np.ndarray:
     """(3,) world-frame rotation vector taking R to R_target (rad): the log map of R_target Rᵀ, in closed
     form (scipy's Rotation.from_matrix validated and orthogonalised its input, a third of a step's time)."""

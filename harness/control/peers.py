@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from harness.control.controller import STATUS_FAILED, STATUS_SOLVED, RunLog, StepRows, body_frame_points, \
-    joint_bounds, urdf_velocity_limits
+    clipped_error, joint_bounds, urdf_velocity_limits
 
 PEERS = ("pink", "mink")
 MINK_SOLVER = "daqp"  # proxqp (cold) reports NoSolutionFound on most of mink's steps once pairs are active; daqp solves them all
@@ -185,6 +185,7 @@ def run_pink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
              for i in range(len(task.hands))]
     posture = PostureTask(cost=params.posture_weight, gain=params.posture_gain * params.dt)
     posture.set_target(q_pin.copy())
+    R_start = {h.frame: config.get_transform_frame_to_world(h.frame).rotation.copy() for h in hands}
     limits = [ConfigurationLimit(model, config_limit_gain=gain_limit), VelocityLimit(model, vmax)]
     npairs = len(scene.pairs)
     barrier = _pink_barrier_class()(npairs, gain=params.xi / (params.di - params.ds), d_min=params.ds)
@@ -197,9 +198,10 @@ def run_pink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
         config.update(q_pin)
         t_update = time.perf_counter() - t0
         refs, _ = task.reference(k * params.dt, start_points)
-        for h, ref in zip(hands, refs):
+        for h, ref in zip(hands, refs):  # the target no farther than spq's clipped feedback reaches
             current = config.get_transform_frame_to_world(h.frame)
-            h.set_target(pin.SE3(current.rotation, np.asarray(ref, float)))
+            goal = current.translation + clipped_error(np.asarray(ref, float) - current.translation, params)
+            h.set_target(pin.SE3(R_start[h.frame], goal))
         barrier.seconds = 0.0
         barrier.last_jacobian = None
         t1 = time.perf_counter()
@@ -319,7 +321,8 @@ def mjcf(scene, q0, frozen, hands) -> str:
                      f'range="{float(m.lower[j])!r} {float(m.upper[j])!r}" limited="true"/>')
         inner = "".join(geoms_of.get(link, [])) + "".join(sites.get(link, []))
         kids = "".join(body(c) for c in children.get(link, []))
-        return f'<body name="link_{m.link_names[link]}" {_pose_attrs(pose)}>{joint}{inner}{kids}</body>'  # 'world' is MuJoCo's
+        inertial = '<inertial pos="0 0 0" mass="0.1" diaginertia="1e-4 1e-4 1e-4"/>'  # kinematics only: any mass
+        return f'<body name="link_{m.link_names[link]}" {_pose_attrs(pose)}>{inertial}{joint}{inner}{kids}</body>'  # 'world' is MuJoCo's
 
     tree = "".join(body(r) for r in children.get(-1, []))
     world = "".join(geoms_of.get(-1, []))
@@ -380,6 +383,7 @@ def run_mink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
              for i in range(len(task.hands))]
     posture = mink.PostureTask(model, cost=params.posture_weight, gain=params.posture_gain * params.dt)
     posture.set_target(mm.to_mj(task.q0))
+    R_start = {h.frame_name: config.get_transform_frame_to_world(h.frame_name, "site").rotation() for h in hands}
     geom_pairs = [([f"g{a}"], [f"g{b}"]) for a, b in np.asarray(scene.pairs).tolist()]
     collision = mink.CollisionAvoidanceLimit(model, geom_pairs, gain=params.xi * params.dt**2 / (params.di - params.ds),
                                              minimum_distance_from_collisions=params.ds,
@@ -404,9 +408,10 @@ def run_mink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
         config.update(mm.to_mj(q))
         t_update = time.perf_counter() - t0
         refs, _ = task.reference(k * params.dt, start_points)
-        for h, ref in zip(hands, refs):
-            h.set_target(mink.SE3.from_rotation_and_translation(
-                config.get_transform_frame_to_world(h.frame_name, "site").rotation(), np.asarray(ref, float)))
+        for h, ref in zip(hands, refs):  # the target no farther than spq's clipped feedback reaches
+            now = config.get_transform_frame_to_world(h.frame_name, "site").translation()
+            goal = now + clipped_error(np.asarray(ref, float) - now, params)
+            h.set_target(mink.SE3.from_rotation_and_translation(R_start[h.frame_name], goal))
         t1 = time.perf_counter()
         collision.compute_qp_inequalities(config, params.dt)  # timed alone: mink's distances and rows
         t_rows = time.perf_counter() - t1

@@ -58,6 +58,7 @@ def run(config: Config) -> Output:
     out.raw["control_robots.csv"] = result.robots
     text = [f"# Control: what each bounding volume does to a collision-avoiding controller", "", notes, "",
             "## Robots", "", markdown_table(result.robots) if not result.robots.empty else "none", "",
+            "## What ran", "", *[f"- {line}" for line in bench.which_ran(result.runs)], "",
             "## Per robot and method (medians and worst over the tasks)", "",
             markdown_table(table) if not table.empty else "no run finished", "",
             *bench.continuity_note(table), "Run: `" + _json(meta) + "`", ""]
@@ -67,7 +68,7 @@ def run(config: Config) -> Output:
                    Figure("control_acceleration.png", lambda p: _acceleration_chart(result, p)),
                    Figure("control_time.png", lambda p: _time_chart(table, p))]
     shown = [c for c in SHOWN if c in table.columns]
-    out.lines = [*frame_lines(result.robots), "", *(frame_lines(table[shown]) if not table.empty else ["no run finished"]),
+    out.lines = [*frame_lines(result.robots), "", *bench.which_ran(result.runs), "", *(frame_lines(table[shown]) if not table.empty else ["no run finished"]),
                  "", *[l for l in bench.continuity_note(table) if l]]
     return out
 
