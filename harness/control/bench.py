@@ -217,7 +217,8 @@ def continuity_note(table: pd.DataFrame) -> list[str]:
                      f"{each('row_turn_peak_worst')}.")
         lines.append(f"- largest acceleration at a closest-feature switch: {each('acc_peak_feature_switch_worst', ' rad/s²')}; "
                      f"spikes there: {each('spikes_feature_switch')}.")
-        lines.append(f"- at a row switching on/off: {each('acc_peak_row_switch_worst', ' rad/s²')}; at d_s reached: "
+        lines.append(f"- at a row switching on/off: {each('acc_peak_row_switch_worst', ' rad/s²')}; at a row starting or "
+                     f"stopping to hold the command: {each('acc_peak_row_binding_worst', ' rad/s²')}; at d_s reached: "
                      f"{each('acc_peak_ds_reached_worst', ' rad/s²')}; at a joint limit: "
                      f"{each('acc_peak_joint_limit_worst', ' rad/s²')}; at a velocity limit: "
                      f"{each('acc_peak_velocity_limit_worst', ' rad/s²')}; at steps with none of these events: "

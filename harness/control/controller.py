@@ -46,6 +46,9 @@ class ControlParams:
     joint). velocity_limit: cap on every joint's speed (rad/s; the URDF's limit where lower).
     task_speed_limit: the position feedback K_p (x_ref − x) is clipped to this speed (m/s), so that a hand
     held back by a damper does not push ever harder as its error grows.
+    xi_auto: mc_rtc's automatic damper gain: a pair's row turning on at distance d with the pair already
+    approaching at -ḋ > xi (d - ds)/(di - ds) gets its own gain ξ_p = -ḋ (di - ds)/(d - ds) (kept while it stays
+    within di), so that the row turns on without forcing a jump; otherwise ξ_p = xi.
     """
 
     dt: float = 0.005
@@ -63,10 +66,13 @@ class ControlParams:
     joint_ds: float = 0.02
     velocity_limit: float = 2.0
     task_speed_limit: float = 0.5
+    xi_auto: bool = True
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
+            if isinstance(v, bool):
+                continue
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"control parameter {f.name} must be a finite number >= 0; got {v}")
         if self.dt <= 0 or self.xi <= 0 or self.velocity_limit <= 0 or self.task_speed_limit <= 0:
@@ -95,6 +101,7 @@ class StepRows:
     witness_a: np.ndarray
     witness_b: np.ndarray
     failed: int = 0
+    h: np.ndarray | None = None  # (k,) the damper bounds the QP got (m/s), set by the Controller
 
     @classmethod
     def empty(cls, n: int) -> "StepRows":
@@ -297,6 +304,7 @@ class Controller:
         links0 = self.scene.link_poses(q)
         R_ref = np.array([links0[link][:3, :3] for link, _ in hands])
         self.source.reset()
+        gains: dict = {}  # pair -> its damper gain while it stays within di (xi_auto)
         log = _empty_log(self.source.name, task, steps, self.n, q)
         for k in range(steps):
             rows, t_dist = self.source.rows(q)
@@ -304,7 +312,8 @@ class Controller:
             refs, vels = task.reference(k * p.dt, start_points)
             P, c = self.objective(q, hands, refs, vels, q0, R_ref)
             lb, ub, damped = joint_bounds(q, self.lower, self.upper, self.vmax, p, self.frozen)
-            h = p.xi * (rows.distance - p.ds) / (p.di - p.ds)
+            h = damper_bounds(rows, qdot, gains, p)
+            rows.h = h
             qdot, status = self.solve(P, c, -rows.jacobian, h, lb, ub, qdot)
             t_qp = time.perf_counter() - t0
             _record(log, k, rows, qdot, status, t_dist, t_qp, damped, lb, ub)
@@ -316,6 +325,29 @@ class Controller:
             refs_next, _ = task.reference((k + 1) * p.dt, start_points)
             log.reference_error[k] = np.linalg.norm(x_now - refs_next, axis=1).max()
         return log
+
+
+def damper_bounds(rows: StepRows, qdot_prev: np.ndarray, gains: dict, params: ControlParams) -> np.ndarray:
+    """h (k,) of the damper rows −J q̇ ≤ h = ξ_p (d − d_s)/(d_i − d_s). With xi_auto a pair turning on
+    while approaching faster than xi (d − d_s)/(d_i − d_s) keeps the gain that allows its current rate
+    (ḋ from the previous command and the new row); ``gains`` carries the pairs' gains between steps and
+    forgets the pairs that left."""
+    p = params
+    scale = (rows.distance - p.ds) / (p.di - p.ds)
+    if not p.xi_auto:
+        return p.xi * scale
+    out = np.empty(len(rows.pairs))
+    kept = {}
+    for i, pair in enumerate(rows.pairs.tolist()):
+        xi = gains.get(pair)
+        if xi is None:
+            rate = float(rows.jacobian[i] @ qdot_prev)  # ḋ if the command did not change
+            xi = p.xi if scale[i] <= 0 else max(p.xi, -rate / scale[i])
+        kept[pair] = xi
+        out[i] = xi * scale[i]
+    gains.clear()
+    gains.update(kept)
+    return out
 
 
 def _empty_log(method, task, steps, n, q) -> RunLog:

@@ -6,7 +6,9 @@
 - Row turn: ‖Δ(∂d/∂q)‖ between consecutive steps of a pair that stays active (its peak and 99th
   percentile; m per rad, the row's own units).
 - The commands: total variation Σ‖Δq̇‖ (rad/s) and the joint acceleration ‖Δq̇‖/dt at every step
-  (from rest at the start), with each step's causes: a damper row switching on or off, a distance
+  (from rest at the start), with each step's causes: a damper row switching on or off, a row starting
+  or stopping to hold the command (its slack reaching 0: the QP's active set; known for the QPs spq's
+  controller solves, not inside pink's or mink's), a distance
   crossing d_s, a joint-limit damper turning on/off or starting/stopping to hold its joint, a joint
   reaching or leaving its velocity limit, a closest-feature switch (a witness point jumping in its own
   body's frame: by over FEATURE_JUMP_M in one step and over FEATURE_JUMP_RATIO times its move at the
@@ -24,7 +26,7 @@ import numpy as np
 FEATURE_JUMP_M = 0.001  # m: least witness-point move in its body's frame in one step that can be a feature switch
 FEATURE_JUMP_RATIO = 3.0  # ... and it must be this many times the pair's move at the steps before and after
 SPIKE_RAD_S2 = 50.0  # rad/s²: a step's ‖Δq̇‖/dt above this is a spike (the references need a few rad/s²)
-CAUSES = ("row_switch", "ds_reached", "joint_limit", "velocity_limit", "feature_switch", "qp_failure", "no_event")
+CAUSES = ("row_switch", "row_binding", "ds_reached", "joint_limit", "velocity_limit", "feature_switch", "qp_failure", "no_event")
 
 
 def accelerations(qdot: np.ndarray, dt: float) -> np.ndarray:
@@ -46,6 +48,7 @@ def step_causes(log, ds: float) -> np.ndarray:
         pn = {int(p): i for i, p in enumerate(now.pairs)}
         pp = {int(p): i for i, p in enumerate(prev.pairs)} if prev is not None else {}
         out[k, c["row_switch"]] = set(pn) != set(pp)
+        out[k, c["row_binding"]] = k > 0 and _binding(now, log.qdot[k]) != _binding(prev, log.qdot[k - 1])
         crossed = False
         for p, i in pn.items():
             d = now.distance[i]
@@ -62,6 +65,17 @@ def step_causes(log, ds: float) -> np.ndarray:
         out[k, c["qp_failure"]] = failed[k] or (k > 0 and failed[k - 1])
     out[:, c["no_event"]] = ~out[:, :-1].any(axis=1)
     return out
+
+
+BINDING_TOL = 1e-6  # m/s: a damper row whose slack h − G q̇ is below this holds the command
+
+
+def _binding(rows, qdot) -> set:
+    """The pairs whose damper row holds the command (spq's QP only: rows.h is set)."""
+    if rows is None or rows.h is None or not len(rows.pairs):
+        return set()
+    slack = rows.h + rows.jacobian @ qdot
+    return {int(p) for p, s in zip(rows.pairs, slack) if s < BINDING_TOL}
 
 
 def _witness_moves(log) -> dict:

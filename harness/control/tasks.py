@@ -27,7 +27,7 @@ import numpy as np
 from harness.control.controller import min_jerk
 
 JITTER_M = 0.04  # m: uniform jitter of every target, per axis
-SEGMENT_S = (0.6, 0.9)  # s: range of each waypoint segment's duration (uniform)
+SEGMENT_S = (1.0, 1.4)  # s: range of each waypoint segment's duration (uniform)
 HUMANOIDS = ("jvrc1", "talos_reduced")
 ARMS = ("panda", "ur5_robot")
 

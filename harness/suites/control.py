@@ -24,7 +24,7 @@ class Config:
 
 SHOWN = ["robot", "method", "runs", "min_distance_m_worst", "steps_below_ds", "final_task_error_m_median",
          "row_turn_p99_median", "row_turn_peak_worst", "acc_peak_median", "acc_peak_worst",
-         "acc_peak_feature_switch_worst", "acc_peak_row_switch_worst", "spikes", "qp_failures", "ms_distance", "ms_qp"]
+         "acc_peak_feature_switch_worst", "acc_peak_row_switch_worst", "acc_peak_row_binding_worst", "spikes", "qp_failures", "ms_distance", "ms_qp"]
 
 
 def run(config: Config) -> Output:
@@ -93,7 +93,9 @@ def _notes(config, params, result) -> str:
         f"damping {p.damping:g}; joint speeds within min(URDF, {p.velocity_limit:g} rad/s); joint limits damped "
         f"(|q̇| <= v_max (s - {p.joint_ds:g})/({p.joint_di:g} - {p.joint_ds:g}) within {p.joint_di:g} rad of a limit, "
         f"continuous where it turns on); one velocity-damper row per pair closer than d_i = {p.di:g} m: ḋ >= -ξ (d - "
-        f"d_s)/(d_i - d_s), d_s = {p.ds:g} m, ξ = {p.xi:g} m/s (spq.control.VelocityDamper: one compiled call gives "
+        f"d_s)/(d_i - d_s), d_s = {p.ds:g} m, ξ = {p.xi:g} m/s"
+        + (" or, as mc_rtc computes it, the gain that allows the pair's rate when its row turns on (so that a row "
+           "turns on without a jump)" if p.xi_auto else "") + " (spq.control.VelocityDamper: one compiled call gives "
         f"every distance and row ∂d/∂q). {QP_SOLVER} (proxsuite) through qpsolvers, warm-started; a failed solve "
         "is counted and q̇ = 0 held that step. Every task starts from rest; its hand references are minimum-jerk "
         f"segments through seeded waypoints (seed {config.seed}), so the reference is smooth. "
