@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from harness.control.controller import ControlParams, Controller, SpqSource
-from harness.control.metrics import CAUSES, SPIKE_RAD_S2, run_metrics, series
+from harness.control.metrics import CAUSES, DS_TOL_M, SPIKE_RAD_S2, run_metrics, series
 from harness.control.peers import DAMPER_PEERS, PEERS, damper_source, run_peer
 from harness.control.scenes import SPQ_POLICIES, check_start, robot_scenes
 from harness.control.tasks import ROBOTS, frozen_mask, make_tasks, setup, start_posture
@@ -225,7 +225,8 @@ def continuity_note(table: pd.DataFrame) -> list[str]:
                      f"{each('acc_peak_no_event_worst', ' rad/s²')}.")
         lines.append(f"- peak acceleration per task (median): {each('acc_peak_median', ' rad/s²')}; total variation of "
                      f"q̇ (median): {each('qdot_tv_median', ' rad/s')}.")
-        lines.append(f"- smallest distance on the PCH bodies: {each('min_distance_m_worst', ' m')}; steps below d_s: "
+        lines.append(f"- smallest distance on the PCH bodies: {each('min_distance_m_worst', ' m')}; steps below d_s "
+                     f"(by over {DS_TOL_M * 1e3:g} mm): "
                      f"{each('steps_below_ds')}; below 0: {each('steps_below_0')}.")
         lines.append(f"- final task error (median): {each('final_task_error_m_median', ' m')}; QP failures: "
                      f"{each('qp_failures')}; time per step (median, ms: distances + Jacobians / QP): "

@@ -141,6 +141,9 @@ def _traces_chart(result, path):
     save_figure(fig, path, f"Commanded joint velocities, {task} ({robot}): PCH beside STP-BV")
 
 
+ACC_CHART_FLOOR = 0.1  # rad/s²: the acceleration chart starts here (steps at rest lie below)
+
+
 def _acceleration_chart(result, path):
     from harness.control.metrics import SPIKE_RAD_S2
     from harness.report.charts import pyplot, save_figure
@@ -156,6 +159,7 @@ def _acceleration_chart(result, path):
         frac = 1.0 - np.arange(len(a)) / len(acc)
         ax.loglog(a, frac, label=f"{method} (peak {a[-1]:.0f})", lw=1.2)
     ax.axvline(SPIKE_RAD_S2, color="0.5", ls="--", lw=0.8)
+    ax.set_xlim(left=ACC_CHART_FLOOR)
     ax.set_xlabel("joint acceleration ‖Δq̇‖/dt (rad/s²)")
     ax.set_ylabel("fraction of steps at or above")
     ax.grid(alpha=0.3, which="both")
