@@ -16,7 +16,9 @@ d_min = d_s (pink keeps every pair's row, loose beyond d_i); mink's row ``−J �
 (its own scaling, Δq = q̇ dt) with g = ξ dt²/(d_i − d_s), d_min = d_s, detection distance d_i. Joint
 limits: ``Δq ≤ g (q_max − q)`` in both, with g = v_max dt/(s_i − s_s) and the limits pulled in by s_s,
 the slope of spq's joint damper. Tasks: both peers' tasks have no feed-forward; their gain is K dt
-(the same feedback K).
+(the same feedback K), their targets no farther than spq's clipped feedback reaches. Solvers: pink with
+proxqp warm-started; mink with daqp (MINK_SOLVER: proxqp reported NoSolutionFound on most of mink's
+steps once pairs were active, warm-started or not).
 
 For the common metrics each peer's trajectory is mapped to spq's q by joint name, and its rows (pairs
 with d < d_i, by the peer's own distances and Jacobians) are logged with the witness points in spq's
