@@ -24,7 +24,8 @@ class Config:
 
 SHOWN = ["robot", "method", "runs", "min_distance_m_worst", "steps_below_ds", "final_task_error_m_median",
          "row_turn_p99_median", "row_turn_peak_worst", "acc_peak_median", "acc_peak_worst",
-         "acc_peak_feature_switch_worst", "acc_peak_row_switch_worst", "acc_peak_row_binding_worst", "spikes", "qp_failures", "ms_distance", "ms_qp"]
+         "acc_peak_feature_switch_worst", "acc_peak_row_switch_worst", "acc_peak_row_binding_worst", "spikes",
+         "qp_failures", "ms_distance", "ms_qp"]
 
 
 def run(config: Config) -> Output:
@@ -68,7 +69,8 @@ def run(config: Config) -> Output:
                    Figure("control_acceleration.png", lambda p: _acceleration_chart(result, p)),
                    Figure("control_time.png", lambda p: _time_chart(table, p))]
     shown = [c for c in SHOWN if c in table.columns]
-    out.lines = [*frame_lines(result.robots), "", *bench.which_ran(result.runs), "", *(frame_lines(table[shown]) if not table.empty else ["no run finished"]),
+    out.lines = [*frame_lines(result.robots), "", *bench.which_ran(result.runs), "",
+                 *(frame_lines(table[shown]) if not table.empty else ["no run finished"]),
                  "", *[l for l in bench.continuity_note(table) if l]]
     return out
 
@@ -106,15 +108,18 @@ def _notes(config, params, result) -> str:
         "(detection d_i, minimum d_s, gain set to the same damper) on a MuJoCo model of the same hulls (harness/control/"
         "peers.py); pin-damper and mujoco-damper: spq's QP fed by pinocchio + coal (computeDistances, joint Jacobians "
         "shifted to the witness points) and by MuJoCo (mj_geomDistance, mj_jac) on the same hulls, which also stand in "
-        "for pink or mink on a robot they cannot run (a run's note says so). Pairs: the robot's SRDF-pruned set (example-robot-data's SRDF, else spq's sampled one) where "
-        "available, else adjacent links skipped: the same for every method (control_robots.csv says which). "
-        f"Measures (harness/control/metrics.py): a closest-feature switch is a witness point jumping in its body's "
+        "for pink or mink on a robot they cannot run (a run's note says so). Pairs: the robot's SRDF-pruned set "
+        "(example-robot-data's shipped SRDF; JVRC-1's sampled one in datasets/srdf/), less the pairs no active joint "
+        "moves apart (rigid), those whose distance hardly varies over random configurations of the active joints "
+        "(static) and those within d_s at the start posture under some volume: the same for every method "
+        "(control_robots.csv counts them). "
+        "Measures (harness/control/metrics.py): a closest-feature switch is a witness point jumping in its body's "
         f"frame: over {FEATURE_JUMP_M * 1e3:g} mm in one step and over {FEATURE_JUMP_RATIO:g} times its move at the "
-        "steps before and after; a spike is ‖Δq̇‖/dt over {SPIKE_RAD_S2:g} "
+        f"steps before and after; a spike is ‖Δq̇‖/dt over {SPIKE_RAD_S2:g} "
         "rad/s²; the smallest distance is every trajectory's on the same PCH scene. Time: distances + Jacobians "
         "(spq: the VelocityDamper call; pink: Configuration.update and the barrier's rows; mink: "
-        "Configuration.update and the collision limit's rows; pin-damper, mujoco-damper: the distances and rows) and QP (the rest of the step: task Jacobians, QP "
-        "build and solve). "
+        "Configuration.update and the collision limit's rows; pin-damper, mujoco-damper: the distances and rows) "
+        "and QP (the rest of the step: task Jacobians, QP build and solve). "
         + (f"Joint-velocity chart: {result.trace_choice}." if result.trace_choice else ""))
 
 
