@@ -16,7 +16,9 @@ d_min = d_s (pink keeps every pair's row, loose beyond d_i); mink's row ``−J �
 (its own scaling, Δq = q̇ dt) with g = ξ dt²/(d_i − d_s), d_min = d_s, detection distance d_i. Joint
 limits: ``Δq ≤ g (q_max − q)`` in both, with g = v_max dt/(s_i − s_s) and the limits pulled in by s_s,
 the slope of spq's joint damper. Tasks: both peers' tasks have no feed-forward; their gain is K dt
-(the same feedback K), their targets no farther than spq's clipped feedback reaches. Solvers: pink with
+(the same feedback K; one gain for position and orientation), their costs the square roots of spq's
+weights (pink and mink square a task's cost in the objective), their targets no farther than spq's
+clipped feedback reaches. Solvers: pink with
 proxqp warm-started; mink with daqp (MINK_SOLVER: proxqp reported NoSolutionFound on most of mink's
 steps once pairs were active, warm-started or not).
 
@@ -182,10 +184,10 @@ def run_pink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
     gain_limit = float(min(1.0, np.max(vmax) * params.dt / span))
     q_pin = pm.to_pin(task.q0)
     config = pink.Configuration(model, pm.data, q_pin, collision_model=pm.geometry, collision_data=pm.gdata)
-    hands = [FrameTask(f"hand{i}", position_cost=params.position_weight,
-                       orientation_cost=params.orientation_weight, gain=params.position_gain * params.dt)
+    hands = [FrameTask(f"hand{i}", position_cost=np.sqrt(params.position_weight),  # pink squares its costs
+                       orientation_cost=np.sqrt(params.orientation_weight), gain=params.position_gain * params.dt)
              for i in range(len(task.hands))]
-    posture = PostureTask(cost=params.posture_weight, gain=params.posture_gain * params.dt)
+    posture = PostureTask(cost=np.sqrt(params.posture_weight), gain=params.posture_gain * params.dt)
     posture.set_target(q_pin.copy())
     R_start = {h.frame: config.get_transform_frame_to_world(h.frame).rotation.copy() for h in hands}
     limits = [ConfigurationLimit(model, config_limit_gain=gain_limit), VelocityLimit(model, vmax)]
@@ -380,10 +382,10 @@ def run_mink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
     gain_limit = float(min(1.0, np.max(vmax_spq) * params.dt / span))
     config = mink.Configuration(model)
     config.update(mm.to_mj(task.q0))
-    hands = [mink.FrameTask(f"hand{i}", "site", position_cost=params.position_weight,
-                            orientation_cost=params.orientation_weight, gain=params.position_gain * params.dt)
+    hands = [mink.FrameTask(f"hand{i}", "site", position_cost=np.sqrt(params.position_weight),  # squared by mink
+                            orientation_cost=np.sqrt(params.orientation_weight), gain=params.position_gain * params.dt)
              for i in range(len(task.hands))]
-    posture = mink.PostureTask(model, cost=params.posture_weight, gain=params.posture_gain * params.dt)
+    posture = mink.PostureTask(model, cost=np.sqrt(params.posture_weight), gain=params.posture_gain * params.dt)
     posture.set_target(mm.to_mj(task.q0))
     R_start = {h.frame_name: config.get_transform_frame_to_world(h.frame_name, "site").rotation() for h in hands}
     geom_pairs = [([f"g{a}"], [f"g{b}"]) for a, b in np.asarray(scene.pairs).tolist()]
