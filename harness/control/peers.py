@@ -15,10 +15,11 @@ The damper law is made the same: pink's barrier row ``−J q̇ ≤ γ (d − d_m
 d_min = d_s (pink keeps every pair's row, loose beyond d_i); mink's row ``−J Δq ≤ g (d − d_min)/dt``
 (its own scaling, Δq = q̇ dt) with g = ξ dt²/(d_i − d_s), d_min = d_s, detection distance d_i. Joint
 limits: ``Δq ≤ g (q_max − q)`` in both, with g = v_max dt/(s_i − s_s) and the limits pulled in by s_s,
-the slope of spq's joint damper. Tasks: both peers' tasks have no feed-forward; their gain is K dt
+the slope of spq's joint damper. Tasks: both peers' tasks have no feed-forward term; their gain is K dt
 (the same feedback K; one gain for position and orientation), their costs the square roots of spq's
-weights (pink and mink square a task's cost in the objective), their targets no farther than spq's
-clipped feedback reaches. Solvers: pink with
+weights (pink and mink square a task's cost in the objective), and each step's target is put where their
+feedback K (target − x) equals spq's demand v_ref + K clip(x_ref − x) (the reference's velocity fed
+forward through the target, the error clipped as spq clips it). Solvers: pink with
 proxqp warm-started; mink with daqp (MINK_SOLVER: proxqp reported NoSolutionFound on most of mink's
 steps once pairs were active, warm-started or not).
 
@@ -201,10 +202,11 @@ def run_pink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
         t0 = time.perf_counter()
         config.update(q_pin)
         t_update = time.perf_counter() - t0
-        refs, _ = task.reference(k * params.dt, start_points)
-        for h, ref in zip(hands, refs):  # the target no farther than spq's clipped feedback reaches
+        refs, vels = task.reference(k * params.dt, start_points)
+        for h, ref, vel in zip(hands, refs, vels):  # spq's demand v_ref + K clip(x_ref - x) through the target
             current = config.get_transform_frame_to_world(h.frame)
-            goal = current.translation + clipped_error(np.asarray(ref, float) - current.translation, params)
+            goal = (current.translation + clipped_error(np.asarray(ref, float) - current.translation, params)
+                    + np.asarray(vel, float) / params.position_gain)
             h.set_target(pin.SE3(R_start[h.frame], goal))
         barrier.seconds = 0.0
         barrier.last_jacobian = None
@@ -411,10 +413,10 @@ def run_mink(task, scene, urdf, params, steps: int, frozen) -> RunLog:
         t0 = time.perf_counter()
         config.update(mm.to_mj(q))
         t_update = time.perf_counter() - t0
-        refs, _ = task.reference(k * params.dt, start_points)
-        for h, ref in zip(hands, refs):  # the target no farther than spq's clipped feedback reaches
+        refs, vels = task.reference(k * params.dt, start_points)
+        for h, ref, vel in zip(hands, refs, vels):  # spq's demand v_ref + K clip(x_ref - x) through the target
             now = config.get_transform_frame_to_world(h.frame_name, "site").translation()
-            goal = now + clipped_error(np.asarray(ref, float) - now, params)
+            goal = now + clipped_error(np.asarray(ref, float) - now, params) + np.asarray(vel, float) / params.position_gain
             h.set_target(mink.SE3.from_rotation_and_translation(R_start[h.frame_name], goal))
         t1 = time.perf_counter()
         collision.compute_qp_inequalities(config, params.dt)  # timed alone: mink's distances and rows
