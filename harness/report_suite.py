@@ -435,6 +435,30 @@ def robots_section(out: Path) -> Section:
     return Section("The field's robots: example-robot-data", paragraphs, [("Per robot", table)], [chart])
 
 
+CONTROL_SHOWN = ["robot", "method", "runs", "min_distance_m_worst", "steps_below_ds", "final_task_error_m_median",
+                 "row_turn_p99_median", "row_turn_peak_worst", "acc_peak_median", "acc_peak_worst",
+                 "acc_peak_feature_switch_worst", "acc_peak_row_switch_worst", "spikes", "qp_failures", "ms_step"]
+
+
+def control_section(out: Path) -> Section:
+    """The control benchmark: its notes, the per-method table, the step timing and the three charts; the
+    paragraphs of "What continuity buys a controller" come from control.md, written from the measures."""
+    table = _read(out, "control.csv")
+    document = (out / "control.md").read_text() if (out / "control.md").is_file() else ""
+    head, _, tail = document.partition("## What continuity buys a controller")
+    notes = [line for line in head.split("\n\n")[1:2] if line.strip()]
+    lessons = [line.lstrip("- ").strip() for line in tail.split("\n") if line.strip() and not line.startswith("Run:")]
+    tables = [("Per robot and method (medians, worst over the tasks)", table[[c for c in CONTROL_SHOWN
+                                                                             if c in table.columns]])]
+    if (out / "control_speed.csv").is_file():
+        tables.append(("Time per control step, side by side on the same configurations", _read(out, "control_speed.csv")))
+    charts = [Chart(out / "control_qdot_traces.png", "One task's joint velocities with spq-pch beside spq-stp."),
+              Chart(out / "control_acceleration.png", "Peak joint accelerations ‖Δq̇‖/dt per step, every method."),
+              Chart(out / "control_time.png", "Time per control step: distances and Jacobians, then the QP.")]
+    return Section("What continuity buys a controller", notes + lessons, tables,
+                   [c for c in charts if c.path.is_file()])
+
+
 def _config(module: str, **fixed) -> Callable[[bool, int, Path], object]:
     """(quick, seed, out) -> module's Config with the fixed fields: a dict as a field's value holds its
     quick setting under True and its full one under False (None: the suite's default); a callable is
@@ -473,6 +497,15 @@ SUITES = [
                                           steps={True: 200, False: None}, repeats={True: 1, False: None},
                                           engine_configs={True: 10, False: None}), robot_section),
     Suite("bench robots", "robots", _config("robots", quick={True: True, False: False}), robots_section),
+    # the report's controller run is smaller than `spq bench control`'s default (20 tasks, pink too: pink's
+    # barrier over every pair takes 50 to 100 ms a step on the humanoids)
+    Suite("bench control", "control", _config("control", robots={True: ["panda"], False: None},
+                                              tasks={True: 1, False: 4}, steps={True: 150, False: None},
+                                              methods={True: ["spq-pch", "spq-stp", "pin-damper"],
+                                                       False: ["spq-pch", "spq-stp", "spq-cse", "spq-auto", "mink",
+                                                               "pin-damper"]},
+                                              speed={True: False, False: True}),
+          control_section),
     Suite("check", "check", check_config, check_section),
 ]
 

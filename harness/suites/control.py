@@ -20,6 +20,9 @@ class Config:
     seed: int = 0
     methods: list[str] | None = None  # None: spq-pch, spq-stp, spq-cse, spq-auto, pink, mink, pin-damper, mujoco-damper
     progress: bool = False
+    speed: bool = True  # also time a control step side by side (harness/control/speed.py) on the first robot
+    speed_steps: int = 400  # configurations of the timed replay
+    speed_rounds: int = 5
 
 
 SHOWN = ["robot", "method", "runs", "min_distance_m_worst", "steps_below_ds", "final_task_error_m_median",
@@ -72,7 +75,26 @@ def run(config: Config) -> Output:
     out.lines = [*frame_lines(result.robots), "", *bench.which_ran(result.runs), "",
                  *(frame_lines(table[shown]) if not table.empty else ["no run finished"]),
                  "", *[l for l in bench.continuity_note(table) if l]]
+    if config.speed:
+        _add_speed(out, config, params)
     return out
+
+
+def _add_speed(out: Output, config: Config, params) -> None:
+    """control_speed.md/.csv: a control step timed side by side on one robot (harness/control/speed.py)."""
+    from harness.control import bench
+    from harness.control.speed import step_timing
+    from harness.report.tables import markdown_table
+
+    robot = bench.check_robots(config.robots)[0]
+    timing = step_timing(robot, steps=config.speed_steps, rounds=config.speed_rounds, seed=config.seed,
+                         params=params, progress=config.progress)
+    out.raw["control_speed.csv"] = timing.table
+    out.documents["control_speed.md"] = "\n".join([
+        "# Time per control step, side by side", "", timing.note, "",
+        "ratio: for a distances+jacobians mode, its time over the same mode without Jacobians; for a whole spq "
+        "step, the pinocchio + coal step's time over it.", "", markdown_table(timing.table), ""])
+    out.lines += ["", f"step timing ({robot}):", *frame_lines(timing.table)]
 
 
 def _json(meta) -> str:
