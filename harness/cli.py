@@ -329,6 +329,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                       "robots suite: configurations coal runs (default 5, quick 2)")
     p.add_argument("--robots", nargs="+", help="robots suite: robot names of example-robot-data (default: all)")
     p.add_argument("--tasks", type=int, default=20, help="control suite: seeded tasks per robot (default 20)")
+    p.add_argument("--pink-tasks", type=int, default=3, dest="pink_tasks",
+                   help="control suite: pink on this many tasks per robot (default 3; its barrier loops in Python over "
+                        "every pair, 50-120 ms a step on the humanoids)")
     p.add_argument("--methods", nargs="+", help="control suite: spq-pch spq-stp spq-cse spq-auto (or pch stp cse auto) "
                                                 "pink mink pin-damper mujoco-damper (default: all); control --robots: jvrc1 talos_reduced panda "
                                                 "ur5_robot (default: all four); --steps: 5 ms steps per task (default 600)")

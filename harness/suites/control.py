@@ -20,6 +20,7 @@ class Config:
     seed: int = 0
     methods: list[str] | None = None  # None: spq-pch, spq-stp, spq-cse, spq-auto, pink, mink, pin-damper, mujoco-damper
     progress: bool = False
+    pink_tasks: int | None = 3  # pink on this many tasks per robot only (None: all): its barrier loops over every pair
     speed: bool = True  # also time a control step side by side (harness/control/speed.py) on the first robot
     speed_steps: int = 400  # configurations of the timed replay
     speed_rounds: int = 5
@@ -46,10 +47,11 @@ def run(config: Config) -> Output:
     params = ControlParams()
     start = time.perf_counter()
     result = bench.run(config.robots, config.tasks, config.steps, config.seed, config.methods, params,
-                       progress=config.progress)
+                       progress=config.progress, slow_peer_tasks=config.pink_tasks)
     table = bench.summary(result.runs)
     meta = run_metadata(command="spq bench control", robots=bench.check_robots(config.robots), tasks=config.tasks,
                         steps=config.steps, seed=config.seed, methods=bench.check_methods(config.methods),
+                        pink_tasks=config.pink_tasks,
                         params=params.describe(), qp_solver=f"{QP_SOLVER} via qpsolvers (eps_abs {QP_EPS_ABS:g}), "
                         f"warm-started", mink_solver=MINK_SOLVER, feature_jump_m=FEATURE_JUMP_M, feature_jump_ratio=FEATURE_JUMP_RATIO,
                         spike_rad_s2=SPIKE_RAD_S2, target_jitter_m=JITTER_M, segment_s=list(SEGMENT_S),
@@ -124,6 +126,8 @@ def _notes(config, params, result) -> str:
         "is counted and q̇ = 0 held that step. Every task starts from rest; its hand references are minimum-jerk "
         f"segments through seeded waypoints (seed {config.seed}), so the reference is smooth. "
         "Methods: spq-pch, spq-stp, spq-cse, spq-auto: the same QP on spq scenes of each policy (the same pairs); "
+        + (f"pink on the first {config.pink_tasks} tasks of each robot only (its barrier computes every pair's row "
+           "in Python, 50 to 120 ms a step on the humanoids); " if config.pink_tasks is not None else "") +
         "pink: pink.solve_ik with FrameTasks, PostureTask, ConfigurationLimit, VelocityLimit and SelfCollisionBarrier "
         f"over every pair (gain ξ/(d_i - d_s), d_min = d_s) on pinocchio + coal hulls; mink: mink.solve_ik "
         f"({MINK_SOLVER}) with FrameTasks, PostureTask, ConfigurationLimit, VelocityLimit and CollisionAvoidanceLimit "

@@ -9,7 +9,7 @@ and since ḋ = (∂d/∂q) q̇, each such pair gives one row of ``G q̇ <= h`` 
 
     G = -∂d/∂q,    h = ξ (d - ds) / (di - ds).
 
-Units: metres, seconds; ξ in 1/s (h in m/s, G in m per unit of each velocity column). The columns
+Units: metres, seconds; ξ in m/s (the fraction (d − ds)/(di − ds) has no unit; h in m/s, G in m per unit of each velocity column). The columns
 are the scene's: the joints in q order (``scene.model.joint_names``), after the base twist's 6
 columns for a floating-base scene (see :meth:`spq.scene.Scene.distances`). The rows feed a
 hand-written QP directly; :mod:`spq.control.limits` turns them into pink's and mink's limits and
@@ -73,12 +73,12 @@ def _finite(value, name: str) -> float:
 
 
 def check_damper_parameters(di, ds, xi) -> tuple[float, float, float]:
-    """(di, ds, xi) as floats, or ValueError naming the admissible range: 0 <= ds < di (m), xi > 0 (1/s)."""
+    """(di, ds, xi) as floats, or ValueError naming the admissible range: 0 <= ds < di (m), xi > 0 (m/s)."""
     di, ds, xi = _finite(di, "di"), _finite(ds, "ds"), _finite(xi, "xi")
     if not 0.0 <= ds < di:
         raise ValueError(f"the damper needs 0 <= ds < di (m); got ds={ds}, di={di}")
     if xi <= 0.0:
-        raise ValueError(f"the damper gain xi must be > 0 (1/s); got {xi}")
+        raise ValueError(f"the damper gain xi must be > 0 (m/s); got {xi}")
     return di, ds, xi
 
 
@@ -126,7 +126,7 @@ class VelocityDamper:
     ds : float
         Safety distance (m), 0 <= ds < di: the distance the damper lets the pair approach, never reach.
     xi : float
-        Damping gain (1/s), > 0: at distance d the pair may approach at up to xi (d - ds)/(di - ds) m/s.
+        Damping gain (m/s), > 0: at distance d the pair may approach at up to xi (d - ds)/(di - ds) m/s.
     signed : bool
         Query overlaps with their penetration depth (negative d, a row pushing the pair apart);
         without it an overlapping pair has no Jacobian and is reported in ``DamperRows.failed``.

@@ -70,7 +70,7 @@ class DamperLimit:
     scene : spq.scene.Scene
         The same robot as the controller's model (joints matched by name).
     di, ds, xi, signed :
-        The damper's interaction distance (m), safety distance (m), gain (1/s) and overlap handling,
+        The damper's interaction distance (m), safety distance (m), gain (m/s) and overlap handling,
         as in :class:`~spq.control.damper.VelocityDamper`.
     backend : 'pink' or 'mink'
         pink: ``compute_qp_inequalities`` reads a pink Configuration (pinocchio model) and returns
