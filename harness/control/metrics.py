@@ -79,18 +79,23 @@ def _binding(rows, qdot) -> set:
     return {int(p) for p, s in zip(rows.pairs, slack) if s < BINDING_TOL}
 
 
-def _witness_moves(log) -> dict:
-    """{(step k, pair): the larger of the two witness points' moves in their body frames from k − 1 to k}."""
-    out = {}
+def _active_at_both(log):
+    """(k, pair, rows at k, its index there, rows at k − 1, its index there) for every pair active at both
+    steps k − 1 and k."""
     for k in range(1, len(log.rows)):
         now, prev = log.rows[k], log.rows[k - 1]
         pp = {int(p): i for i, p in enumerate(prev.pairs)}
         for i, p in enumerate(now.pairs):
             j = pp.get(int(p))
             if j is not None:
-                out[(k, int(p))] = max(np.linalg.norm(now.witness_a[i] - prev.witness_a[j]),
-                                       np.linalg.norm(now.witness_b[i] - prev.witness_b[j]))
-    return out
+                yield k, int(p), now, i, prev, j
+
+
+def _witness_moves(log) -> dict:
+    """{(step k, pair): the larger of the two witness points' moves in their body frames from k − 1 to k}."""
+    return {(k, p): max(np.linalg.norm(now.witness_a[i] - prev.witness_a[j]),
+                        np.linalg.norm(now.witness_b[i] - prev.witness_b[j]))
+            for k, p, now, i, prev, j in _active_at_both(log)}
 
 
 def _jumped(moves: dict, k: int, pair: int) -> bool:
@@ -101,15 +106,8 @@ def _jumped(moves: dict, k: int, pair: int) -> bool:
 
 def row_turns(log) -> np.ndarray:
     """‖Δ(∂d/∂q)‖ of every (step, pair) where the pair is active at both k − 1 and k."""
-    out = []
-    for k in range(1, len(log.rows)):
-        now, prev = log.rows[k], log.rows[k - 1]
-        pp = {int(p): i for i, p in enumerate(prev.pairs)}
-        for i, p in enumerate(now.pairs):
-            j = pp.get(int(p))
-            if j is not None:
-                out.append(np.linalg.norm(now.jacobian[i] - prev.jacobian[j]))
-    return np.array(out)
+    return np.array([np.linalg.norm(now.jacobian[i] - prev.jacobian[j])
+                     for _, _, now, i, prev, j in _active_at_both(log)])
 
 
 def common_distances(pch_scene, q: np.ndarray) -> np.ndarray:
