@@ -110,6 +110,23 @@ def test_a_target_out_of_reach_gives_a_stated_task_error(scenes, frozen):
     assert row["qp_failures"] == sum(s != STATUS_SOLVED for s in log.status)
 
 
+def test_a_singular_task_gives_finite_commands_and_a_stated_error(scenes, frozen):
+    """A hand point fixed to the base link (no active joint moves it: its Jacobian is zero) with a target
+    away from it: the task is singular, the damping and the posture keep the QP well posed, so every step
+    solves with finite commands, the hand cannot move and the task error says so."""
+    from harness.control.metrics import run_metrics
+
+    params = ControlParams()
+    base = make_tasks(scenes.base, ROBOT, 1, seed=0)[0]
+    hand = [(0, np.zeros(3))]  # link 0: the root, moved by no joint
+    task = dataclasses.replace(base, name="singular", hands=hand, waypoints=np.array([[[0.3, 0.0, 0.0]]]),
+                               durations=np.array([0.1]))
+    log = _run(scenes, "pch", task, 40, frozen, params)
+    assert all(s == STATUS_SOLVED for s in log.status)
+    assert np.isfinite(log.qdot).all() and np.abs(log.qdot).max() < 1e-6
+    assert run_metrics(log, params, scenes.base)["final_task_error_m"] == pytest.approx(0.3, abs=1e-9)
+
+
 def test_a_start_below_ds_gives_a_stated_status(scenes, frozen):
     """An obstacle put through the tool at the start (a pair below ds, overlapping): every step has a
     stated QP status (solved, pushing the pair apart, or failed with q̇ = 0), never an exception, and
