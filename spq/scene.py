@@ -521,7 +521,9 @@ class Scene:
         return self.model.random_configuration(rng)
 
     def _run(self, qs: np.ndarray, coherent: bool, prune: float, out: np.ndarray | None = None,
-             signed: bool = False, workers: int = 1) -> np.ndarray:
+             signed: bool = False, workers: int = 1, jac: np.ndarray | None = None) -> np.ndarray:
+        """Results (N, npairs, OUT_SIZE) of every configuration of qs; with jac (N, npairs, nv), the rows
+        ∂d/∂q too, in the same compiled loop."""
         shape = (len(qs), len(self.pairs), OUT_SIZE)
         workers = check_workers(workers)
         self._pair_ints[:, I_SIGNED] = check_signed(signed)
@@ -533,13 +535,15 @@ class Scene:
         bounds = [(0, len(qs))] if coherent else chunk_bounds(len(qs), workers, MIN_SCENE_CONFIGURATIONS)
         if len(bounds) == 1:
             self._sweep(qs, coherent, prune, self._pair_ints, self._pair_floats, out,
-                        (self._links, self._slot_scratch, self._query_scratch))
+                        (self._links, self._slot_scratch, self._query_scratch, self._axes), jac, signed)
             return out
 
         def chunk(start: int, stop: int):
             ints, floats = self._pair_ints.copy(), self._pair_floats.copy()
-            scratch = (self._link_scratch(), np.empty_like(self._slot_scratch), query_scratch())  # a thread's own
-            self._sweep(qs[start:stop], False, prune, ints, floats, out[start:stop], scratch)
+            scratch = (self._link_scratch(), np.empty_like(self._slot_scratch), query_scratch(),
+                       np.empty_like(self._axes))  # a thread's own
+            self._sweep(qs[start:stop], False, prune, ints, floats, out[start:stop], scratch,
+                        None if jac is None else jac[start:stop], signed)
             return ints, floats
 
         states = map_chunks(chunk, bounds, workers)
@@ -550,16 +554,19 @@ class Scene:
         return out
 
     def _sweep(self, qs: np.ndarray, coherent: bool, prune: float, pair_ints: np.ndarray, pair_floats: np.ndarray,
-               out: np.ndarray, scratch: tuple) -> None:
-        """One compiled call over qs with the given per-pair warm-start state, into out; scratch: (links,
-        slot poses, query scratch), one set per thread."""
+               out: np.ndarray, scratch: tuple, jac: np.ndarray | None = None, signed: bool = False) -> None:
+        """One compiled call over qs with the given per-pair warm-start state, into out (and the rows
+        ∂d/∂q into jac, when given); scratch: (links, slot poses, query scratch, joint axes), one set per
+        thread."""
         m = self.model
-        kscene.scene_distances(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
-                               m.q_offset, self.base, qs,
-                               self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin,
-                               self._slot_frange, self._slot_irange, self._fpool, self._ipool, self._slot_centre,
-                               self._slot_radius, self._pair_slots, pair_ints, pair_floats,
-                               bool(coherent), float(prune), scratch[0], scratch[1], *scratch[2], out)
+        args = (m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier, m.q_offset, self.base,
+                qs, self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin, self._slot_frange,
+                self._slot_irange, self._fpool, self._ipool, self._slot_centre, self._slot_radius, self._pair_slots,
+                pair_ints, pair_floats, bool(coherent), float(prune), scratch[0], scratch[1], *scratch[2], out)
+        if jac is None:
+            kscene.scene_distances(*args)
+        else:
+            kjac.scene_distances_jacobians(*args, self.floating_base, self._pair_stop, bool(signed), scratch[3], jac)
 
     def _link_scratch(self) -> np.ndarray:
         """(nlinks + 1, 4, 4) scratch for the link poses; the last row, the world's pose, is the identity
@@ -577,18 +584,14 @@ class Scene:
         """Move the robot's base: ``base`` (4x4) is the world pose of the root link's parent frame."""
         self.base = as_pose(base, "base")
 
-    def _jacobians(self, qs: np.ndarray, out: np.ndarray, signed: bool, jac: np.ndarray | None = None) -> np.ndarray:
-        """Rows ∂d/∂q (N, npairs, nv) of results ``out`` (N, npairs, OUT_SIZE) at configurations qs."""
-        m = self.model
-        shape = (len(qs), len(self.pairs), self.nv)
+    def _jacobian_out(self, n: int, jac: np.ndarray | None) -> np.ndarray:
+        """The (n, npairs, nv) array the rows go into: ``jac`` checked, or a new one."""
+        shape = (n, len(self.pairs), self.nv)
         if jac is None:
-            jac = np.empty(shape)
-        elif (not isinstance(jac, np.ndarray) or jac.shape != shape or jac.dtype != np.float64
-              or not jac.flags.c_contiguous or not jac.flags.writeable):
+            return np.empty(shape)
+        if (not isinstance(jac, np.ndarray) or jac.shape != shape or jac.dtype != np.float64
+                or not jac.flags.c_contiguous or not jac.flags.writeable):
             raise ValueError(f"jac_out must be a writeable C-contiguous float64 array of shape {shape}")
-        kjac.scene_jacobians(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
-                             m.q_offset, self.base, self.floating_base, qs, self._slot_link, self._pair_slots,
-                             self._pair_stop, bool(signed), out, self._links, self._axes, jac)
         return jac
 
     def frame_jacobians(self, q, frames) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -663,10 +666,11 @@ class Scene:
         Raises ValueError for a q of the wrong length, with NaN/inf, or outside the joint limits."""
         q = self.model.check_configuration(q)
         qs = np.ascontiguousarray(q[None])
-        out = self._run(qs, coherent, self._check_prune(prune), signed=signed)
+        jac = np.empty((1, len(self.pairs), self.nv)) if jacobian else None
+        out = self._run(qs, coherent, self._check_prune(prune), signed=signed, jac=jac)
         result = SceneDistances.from_out(self.pairs, out[0])
         if jacobian:
-            result.jacobian = self._jacobians(qs, out, signed)[0]
+            result.jacobian = jac[0]
         return result
 
     def distances_many(self, qs, coherent: bool = False, prune: float | None = None,
@@ -688,10 +692,9 @@ class Scene:
         faults, a few percent of a call over many configurations)."""
         qs = np.atleast_2d(np.asarray(qs, dtype=np.float64))
         checked = np.ascontiguousarray(self.model.check_configurations(qs))
-        out = self._run(checked, coherent, self._check_prune(prune), out, signed, workers)
-        if not jacobian:
-            return out
-        return out, self._jacobians(checked, out, signed, jac_out)
+        jac = self._jacobian_out(len(checked), jac_out) if jacobian else None
+        out = self._run(checked, coherent, self._check_prune(prune), out, signed, workers, jac)
+        return out if jac is None else (out, jac)
 
     def link_poses(self, q) -> np.ndarray:
         """(nlinks, 4, 4) world poses of the links at q (ValueError for a q the model rejects)."""

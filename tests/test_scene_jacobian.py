@@ -218,3 +218,14 @@ def test_bad_input_is_a_clear_value_error():
         kuka("pch", obstacles=[Obstacle("cone", object(), np.eye(4))])
     with pytest.raises(ValueError, match="jac_out"):
         scene.distances_many(q[None], jacobian=True, jac_out=np.empty((1, 1, 1)))
+
+
+def test_rows_on_threads_equal_one_threads_bit_for_bit():
+    scene = kuka("auto")
+    qs = inner_configurations(scene.model, 64, 8)
+    out1, jac1 = scene.distances_many(qs, jacobian=True, signed=True)
+    out2, jac2 = scene.distances_many(qs, jacobian=True, signed=True, workers=2)
+    assert np.array_equal(out1, out2, equal_nan=True) and np.array_equal(jac1, jac2, equal_nan=True)
+    assert np.array_equal(out1, scene.distances_many(qs, signed=True), equal_nan=True)  # rows change no result
+    single = scene.distances(qs[3], coherent=False, signed=True, jacobian=True)
+    assert np.array_equal(single.jacobian, jac1[3], equal_nan=True)

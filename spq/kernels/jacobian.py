@@ -29,12 +29,13 @@ import math
 from spq.kernels.gjk import OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, OUT_STATUS
 from spq.kernels.jit import kernel
 from spq.kernels.kinematics import PRISMATIC, forward_kinematics
+from spq.kernels.scene import pairs_at_poses, slot_poses
 
 BASE_COLUMNS = 6  # columns a floating base adds in front of the joints: v (3, m/s), ω (3, rad/s), world frame
 STATUS_SEPARATED = 0
 STATUS_TOUCHING = 1
 STATUS_OVERLAPPING = 2
-PRUNED = -1  # as spq.kernels.scene.PRUNED (not imported: that module's kernels need not load here)
+PRUNED = -1  # spq.kernels.scene.PRUNED
 TO_ROOT = -1  # a pair's stop link when it has a side in the world: walk to the root, the base's columns included
 
 
@@ -120,17 +121,21 @@ def pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base,
                       slot_link[pair_slots[p, 1]], pair_stop[p], res[OUT_POINT_B:OUT_POINT_B + 3], n, 1.0, row)
 
 
-@kernel(nogil=True)
-def scene_jacobians(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, floating,
-                    qs, slot_link, pair_slots, pair_stop, signed, out, links, axes, jac):
-    """:func:`pair_jacobians` for each of N configurations qs (N, ndof) and their results out
-    (N, npairs, OUT_SIZE) into jac (N, npairs, nv); links (>= nlinks, 4, 4), axes (nlinks, 3): scratch.
-
-    Forward kinematics runs again here (a few µs per configuration against the queries' hundreds), so
-    the distance sweep stays the one compiled loop it is without Jacobians."""
+@kernel(nogil=True)  # threads run chunks of the configurations at once (spq.workers)
+def scene_distances_jacobians(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, qs,
+                              slot_link, slot_offset, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool,
+                              slot_centre, slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, links,
+                              poses, R, t, work, iwork, out, floating, pair_stop, signed, axes, jac):
+    """:func:`spq.kernels.scene.scene_distances` and every pair's row ∂d/∂q in one compiled loop: per
+    configuration, forward kinematics, the slot poses, every pair's query into out[i], then the rows
+    into jac[i] (N, npairs, nv) from the same link poses. The arguments up to ``out`` are
+    scene_distances'; floating, pair_stop, signed as in :func:`pair_jacobians`; axes (nlinks, 3) scratch."""
     for i in range(qs.shape[0]):
         forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, qs[i], base,
                            links)
+        slot_poses(links, slot_link, slot_offset, poses)
+        pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre, slot_radius,
+                       pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out[i])
         joint_axes(links, joint_axis, axes)
         pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, slot_link, pair_slots,
                        pair_stop, signed, out[i], jac[i])
