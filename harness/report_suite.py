@@ -297,6 +297,10 @@ LOOK = {
     "robot_distance_matrix.png": "Look for the darkest cells: the pairs that come closest at this posture.",
     "robots_time_vs_pairs.png": "Look at the gap between the circles and the grey squares: spq's time and "
                                 "pinocchio's on the same robot.",
+    "control_qdot_traces.png": "Look for the kinks: steps where a joint's commanded velocity changes direction at once.",
+    "control_acceleration.png": "Look at the tails right of the dashed line: how often, and how hard, each method's "
+                                "commands jump.",
+    "control_time.png": "Look at the bar heights: the time a control step spends on distances and on the QP.",
 }
 
 
