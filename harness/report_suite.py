@@ -451,7 +451,9 @@ def control_section(out: Path) -> Section:
     document = (out / "control.md").read_text() if (out / "control.md").is_file() else ""
     head, _, tail = document.partition("## What continuity buys a controller")
     notes = [line for line in head.split("\n\n")[1:2] if line.strip()]
-    lessons = [line.lstrip("- ").strip() for line in tail.split("\n") if line.strip() and not line.startswith("Run:")]
+    # the page's paragraphs are plain text: Markdown's bullets and bold markers would show as characters
+    lessons = [line.lstrip("- ").replace("**", "").strip() for line in tail.split("\n")
+               if line.strip() and not line.startswith("Run:")]
     tables = [("Per robot and method (medians, worst over the tasks)", table[[c for c in CONTROL_SHOWN
                                                                              if c in table.columns]])]
     if (out / "control_speed.csv").is_file():
