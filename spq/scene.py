@@ -285,12 +285,16 @@ class Scene:
     @classmethod
     def from_model(cls, model: RobotModel, urdf_dir=None, convex_dir=None, mesh_root=None, policy: str = "auto",
                    policies=None, primitives: str = "hull", hull_cache: dict | None = None, srdf=None,
-                   **options) -> "Scene":
+                   srdf_reasons=None, **options) -> "Scene":
         """:meth:`from_urdf` for a RobotModel already read (or edited: mesh filenames made absolute,
         geometry replaced). urdf_dir: the folder relative mesh filenames resolve against (default:
         the folder of ``model.source``, else the working directory). hull_cache: a dict kept between
         calls, in which each mesh (file, scale, folders) and primitive (kind, size) gets its hull once:
-        robots that share meshes then share hull objects, and their cube maps. The rest as in from_urdf."""
+        robots that share meshes then share hull objects, and their cube maps. srdf: an SRDF whose
+        ``disable_collisions`` pairs are skipped; srdf_reasons: None (every element) or the reasons
+        whose elements are honoured, e.g. ``("Adjacent", "Default", "Always")`` for a controller, which
+        must still watch the pairs MoveIt disabled as 'Never' in collision (only over its sampled
+        configurations, not along the controller's motion). The rest as in from_urdf."""
         check_policy(policy, SCENE_POLICIES, "scene policy")
         if primitives not in PRIMITIVE_MODES:
             raise ValueError(f"unknown primitives mode {primitives!r}; choose one of {list(PRIMITIVE_MODES)}")
@@ -326,7 +330,13 @@ class Scene:
             from spq.collision_pairs import skip_pairs
             from spq.io.srdf import read_srdf
 
-            disabled = [(a, b) for a, b, _ in read_srdf(srdf)]
+            entries = read_srdf(srdf)
+            if srdf_reasons is not None:
+                if isinstance(srdf_reasons, str):
+                    raise ValueError(f"srdf_reasons must be a collection of reasons such as ('Adjacent', 'Default'), "
+                                     f"got the string {srdf_reasons!r}")
+                entries = [e for e in entries if e[2] in set(srdf_reasons)]
+            disabled = [(a, b) for a, b, _ in entries]
             named = [(b.name, model.link_names[b.link]) for b in bodies]
             # links the model lacks are passed over, as pinocchio's removeCollisionPairs does: an SRDF may
             # be written for a larger variant of the robot (talos.srdf serves talos_left_arm)

@@ -175,6 +175,32 @@ def test_jvrc1_srdf_disables_adjacent_pairs_and_the_pair_always_in_collision():
 
 
 
+def test_srdf_reasons_honours_only_the_named_reasons():
+    """Scene.from_urdf(srdf=, srdf_reasons=): with ('Adjacent', 'Default') the 'Never' pairs stay in the
+    scene (a controller must watch them); the pair counts follow the file as ElementTree reads it."""
+    require_shared_datasets()
+    from datasets.robots import robot_files
+    from datasets.srdf import generated_srdf
+    from spq.scene import Scene
+
+    files, srdf = robot_files("jvrc1"), generated_srdf("jvrc1")
+    root = ElementTree.parse(srdf).getroot()
+    never = {frozenset((e.get("link1"), e.get("link2"))) for e in root.iter("disable_collisions")
+             if e.get("reason") == "Never"}
+    every = Scene.from_urdf(files.urdf, convex_dir=files.convex_dir, policy="pch", srdf=srdf)
+    kept = Scene.from_urdf(files.urdf, convex_dir=files.convex_dir, policy="pch", srdf=srdf,
+                           srdf_reasons=("Adjacent", "Default", "Always"))
+    links = kept.model.link_names
+
+    def link_pairs(scene):
+        return {frozenset((links[scene.bodies[a].link], links[scene.bodies[b].link])) for a, b in scene.pairs}
+
+    assert never and never <= link_pairs(kept) and not never & link_pairs(every)
+    assert link_pairs(kept) - link_pairs(every) == never  # JVRC-1: one body per link
+    with pytest.raises(ValueError, match="collection of reasons"):
+        Scene.from_urdf(files.urdf, convex_dir=files.convex_dir, srdf=srdf, srdf_reasons="Never")
+
+
 def test_sampling_agrees_with_coal_on_the_same_hulls():
     """disabled_pairs_by_sampling on JVRC-1's PCH scene against pinocchio's kinematics and coal's
     distances on the same hulls (harness.pinocchio_peer) at other random configurations: no pair that

@@ -2,7 +2,8 @@
 sharing its bodies (hulls, STP-BVs, fits) and its pruned pair set, plus the robot's static obstacles.
 
 Pairs: the SRDF-pruned set (``Scene.from_model(..., srdf=...)``: JVRC-1's sampled SRDF in datasets/srdf/,
-example-robot-data's shipped ones), else adjacent links skipped; every method and peer uses the same pairs,
+example-robot-data's shipped ones) less its 'Never' entries (:data:`CONTROL_SRDF_REASONS`), else adjacent
+links skipped; every method and peer uses the same pairs,
 those of :func:`robot_scene`.
 """
 
@@ -14,6 +15,10 @@ from pathlib import Path
 import numpy as np
 
 SPQ_POLICIES = ("pch", "stp", "cse", "auto")
+# SRDF reasons a controller honours: MoveIt's 'Never' means never in collision over the setup assistant's
+# random configurations, not along a controller's motion (JVRC-1: 93 of its 218 are arm-arm pairs such as
+# L_ELBOW_P_S - R_WRIST_Y_S, which the crossing tasks bring together), so those pairs keep their rows.
+CONTROL_SRDF_REASONS = ("Adjacent", "Default", "Always", "User", "")
 
 
 @dataclass
@@ -60,7 +65,9 @@ def _from_model(model, policy, srdf, options, obstacles=()):
     from spq.scene import Scene
 
     if srdf is not None:
-        return Scene.from_model(model, policy=policy, srdf=srdf, obstacles=obstacles, **options), f"SRDF {Path(srdf).name}"
+        return (Scene.from_model(model, policy=policy, srdf=srdf, srdf_reasons=CONTROL_SRDF_REASONS,
+                                 obstacles=obstacles, **options),
+                f"SRDF {Path(srdf).name} (its 'Never' pairs kept)")
     return Scene.from_model(model, policy=policy, obstacles=obstacles, **options), "adjacent links skipped"
 
 
