@@ -457,6 +457,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_check)
 
+    p = sub.add_parser("fuzz", help="a seeded, resumable campaign over adversarial shapes and poses: where each engine "
+                                    "fails; spq's wrong or failed cases shrunk to reproducers")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--budget", type=float, help="seconds of this run (with or without --queries)")
+    p.add_argument("--queries", type=float, help="stop once the campaign holds this many spq queries (e.g. 1e7)")
+    p.add_argument("--families", nargs="+", help="families to draw from (default: all; see docs/fuzz.md)")
+    p.add_argument("--poses", type=int, default=2000, help="pose pairs per case (default 2000)")
+    p.add_argument("--sample", type=float, default=2e-4,
+                   help="share of spq's queries checked by the reference whatever the cheap checks say")
+    p.add_argument("--peers", nargs="+", help="peer engines (default: coal mujoco bullet; fcl hangs on some poses)")
+    p.add_argument("--state", help="campaign state file: resumed when it exists, written after every round")
+    p.add_argument("--no-shrink", dest="shrink", action="store_false", help="do not shrink the failing cases")
+    p.add_argument("--fixtures", help="folder for the shrunk reproducers (default tests/fixtures/fuzz)")
+    p.add_argument("--plant", help="a planted bug to find (early-stop)")
+    p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.add_argument("--quiet", action="store_true")
+    _spread_arguments(p, "task of cases")
+    p.set_defaults(func=_suite("fuzz", queries=lambda a: None if a.queries is None else int(a.queries)))
+
     p = sub.add_parser("srdf", help="sample a robot's collision pairs as MoveIt's setup assistant does; write an SRDF")
     p.add_argument("urdf", help="URDF file, or a robot of datasets/robots.py by name (jvrc1 uses its convex hulls)")
     p.add_argument("--out", required=True, help="SRDF file to write")

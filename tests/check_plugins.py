@@ -136,3 +136,21 @@ class _AbortPair(SpqPair):
 class AbortsOnOverlap(_Mutant):
     """Ends its process on every overlapping pose (a stand-in for python-fcl's rare C++ aborts)."""
     pair_class = _AbortPair
+
+
+class _HangPair(SpqPair):
+    def _query(self, pose_a, pose_b):
+        r = super()._query(pose_a, pose_b)
+        if r.status == "overlapping":
+            import time
+
+            time.sleep(3600)  # as python-fcl looping on one pose
+        return r
+
+    def query_many(self, poses_a, poses_b):
+        return PreparedPair.query_many(self, poses_a, poses_b)
+
+
+class HangsOnOverlap(_Mutant):
+    """Never answers on an overlapping pose (a stand-in for python-fcl's rare endless loops)."""
+    pair_class = _HangPair

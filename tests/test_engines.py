@@ -336,6 +336,27 @@ def test_isolated_engine_survives_native_crashes():
     assert one.status == "failed" and one.message == CRASHED
 
 
+def test_isolated_engine_survives_a_hang(monkeypatch):
+    """A query on which the engine never answers is killed after the time limit and comes back 'failed';
+    the others keep the engine's answers."""
+    from datasets import load_object
+    from harness.engines import isolated as iso
+    from harness.poses import random_poses
+
+    monkeypatch.setattr(iso, "HANG_BASE_S", 1.0)
+    a, b = load_object("kuka_link_4"), load_object("panda_link_2")
+    pa, pb = random_poses(8, 6, 0.12)  # one overlapping pose of eight
+    truth = spq.distances(a, b, pa, pb, signed=True)
+    over = truth.status == "overlapping"
+    engine = iso.IsolatedEngine("hangs", plugin="tests.check_plugins:HangsOnOverlap")
+    try:
+        got = engine.prepare(a, b).query_many(pa, pb)
+    finally:
+        engine.close()
+    assert (got.status[over] == "failed").all()
+    np.testing.assert_array_equal(got.distance[~over], truth.distance[~over])
+
+
 @pytest.mark.engines
 def test_isolated_engine_gives_the_engines_own_answers():
     """Served from a child process, coal answers bit for bit as in-process (results cross the pipe as

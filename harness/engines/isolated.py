@@ -3,8 +3,8 @@
 Some engines end the interpreter on rare inputs: python-fcl's libccd EPA throws a C++ exception that
 nothing catches ("The origin is outside of the polytope", std::terminate) on some touching poses.
 :class:`IsolatedEngine` serves a registered engine from a child process (multiprocessing, spawn).
-When the child dies during a batch, a fresh one takes over and the batch is split in halves until
-the poses that kill it are found; those come back as status "failed" with the reason, the others
+When the child dies during a batch, or stays silent past a time limit that grows with the batch (a
+hang), a fresh one takes over and the batch is split in halves until the poses that kill it are found; those come back as status "failed" with the reason, the others
 with the engine's own answers. Results are the engine's, bit for bit (arrays cross the pipe as they
 are); only the time per query grows (one round trip per call), so timing suites use the engine
 in-process.
@@ -27,7 +27,12 @@ from harness.engines.base import (
     failed_result,
 )
 
-CRASHED = "the engine's process died on this query (a native crash)"
+CRASHED = "the engine's process died on this query (a native crash) or did not answer in time (a hang)"
+HANG_BASE_S = 2.0  # a child silent for longer than this plus HANG_PER_QUERY_S per query is hung: it is
+HANG_PER_QUERY_S = 0.002  # killed and the batch split as after a crash (seen: python-fcl looping on one pose
+MAX_HANGS_PER_PAIR = 16  # of a 1e-3 m hull); enough to bisect a batch of 2000 down to one hanging pose, after
+# which a pair's unanswered rows stay "failed" (an engine hanging on every pose of a pair would cost hours)
+PREPARE_QUERIES = 10_000  # loading two bodies may take as long as this many queries (a BVH over a big mesh)
 NATIVE = ("fcl", "coal", "bullet", "bullet-margin", "mujoco")  # the built-in engines of native code, judged in children
 
 
@@ -95,7 +100,11 @@ def _one_blas_thread_env():
 
 
 class WorkerDied(Exception):
-    """The child process ended while answering."""
+    """The child process ended while answering (hung: it was killed for not answering in time)."""
+
+    def __init__(self, hung: bool = False):
+        super().__init__("hung" if hung else "died")
+        self.hung = hung
 
 
 class _Worker:
@@ -114,9 +123,13 @@ class _Worker:
             self.proc.join()
             raise ImportError(f"engine {name!r} could not be started in a child process") from None
 
-    def call(self, op: str, payload):
+    def call(self, op: str, payload, queries: int = 1):
         try:
             self.conn.send((op, payload))
+            if not self.conn.poll(HANG_BASE_S + HANG_PER_QUERY_S * queries):
+                self.proc.kill()
+                self.proc.join(timeout=5)
+                raise WorkerDied(hung=True)
             status, value = self.conn.recv()
         except (EOFError, BrokenPipeError, ConnectionResetError):
             self.proc.join(timeout=5)
@@ -140,20 +153,22 @@ class IsolatedPair(PreparedPair):
     def __init__(self, engine: "IsolatedEngine", a, b):
         self._engine = engine
         self._shapes = engine.sent(a), engine.sent(b)  # pickled across the pipe
+        self._hangs = 0
         self._prepare()
 
     def _prepare(self) -> None:
         try:
-            self._engine.worker().call("prepare", self._shapes)
+            self._engine.worker().call("prepare", self._shapes, PREPARE_QUERIES)
         except WorkerDied:
             self._engine.restart()
             raise RuntimeError("the engine's process died while loading the bodies") from None
 
-    def _run(self, op: str, payload):
-        """The child's answer, or None if it died (a fresh child then holds this pair again)."""
+    def _run(self, op: str, payload, queries: int = 1):
+        """The child's answer, or None if it died or hung (a fresh child then holds this pair again)."""
         try:
-            return self._engine.worker().call(op, payload)
-        except WorkerDied:
+            return self._engine.worker().call(op, payload, queries)
+        except WorkerDied as exc:
+            self._hangs += exc.hung
             self._engine.restart()
             self._prepare()
             return None
@@ -176,7 +191,9 @@ class IsolatedPair(PreparedPair):
         (left "failed", as BatchResult.empty made them)."""
         if len(rows) == 0:
             return
-        got = self._run("query_many", (poses_a[rows], poses_b[rows]))
+        if self._hangs >= MAX_HANGS_PER_PAIR:
+            return
+        got = self._run("query_many", (poses_a[rows], poses_b[rows]), len(rows))
         if got is not None:
             out.distance[rows], out.point_a[rows], out.point_b[rows], out.status[rows], out.raw_distance[rows] = got
             return
