@@ -160,6 +160,7 @@ SUMMARY = [  # (column, aggregation over the robot's tasks, new name)
     *[(f"acc_peak_{c}", "max", f"acc_peak_{c}_worst") for c in CAUSES],
     *[(f"spikes_{c}", "sum", f"spikes_{c}") for c in CAUSES],
     ("qp_failures", "sum", "qp_failures"),
+    ("qp_fallbacks", "sum", "qp_fallbacks"),
     ("clipped_steps", "sum", "clipped_steps"),
     ("ms_distance_median", "median", "ms_distance"),
     ("ms_qp_median", "median", "ms_qp"),
@@ -237,7 +238,7 @@ def continuity_note(table: pd.DataFrame) -> list[str]:
                      f"(by over {DS_TOL_M * 1e3:g} mm): "
                      f"{each('steps_below_ds')}; below 0: {each('steps_below_0')}.")
         lines.append(f"- final task error (median): {each('final_task_error_m_median', ' m')}; QP failures: "
-                     f"{each('qp_failures')}; time per step (median, ms: distances + Jacobians / QP): "
+                     f"{each('qp_failures')}; steps proxqp left to daqp: {each('qp_fallbacks')}; time per step (median, ms: distances + Jacobians / QP): "
                      + ", ".join(f"{m} {_fmt(by.loc[m, 'ms_distance'])} / {_fmt(by.loc[m, 'ms_qp'])}" for m in by.index)
                      + ".")
         steps = {m: by.loc[m, "ms_step"] for m in by.index}

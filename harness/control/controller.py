@@ -13,8 +13,9 @@ The joint-limit damper (mc_rtc's idea, in a continuous form): for a joint at s f
 |q̇ toward it| ≤ v_max (s − s_s)/(s_i − s_s) once s < s_i, which equals v_max at s = s_i, so the bound
 turns on without a jump and the joint slows to a stop at s_s instead of hitting the limit in one step.
 
-The QP goes to proxsuite's proxqp through qpsolvers, warm-started with the previous step's q̇. A failed
-solve is a stated status (counted; q̇ = 0 that step), never an exception. The damper rows come from a
+The QP goes to proxsuite's proxqp through qpsolvers, warm-started with the previous step's q̇; where proxqp
+finds no solution, daqp tries (counted apart). A failed solve is a stated status (counted; q̇ = 0 that
+step), never an exception. The damper rows come from a
 *distance source* (:class:`SpqSource` for an spq Scene; harness.control.peers has pinocchio's and
 MuJoCo's), so one QP serves every geometry.
 """
@@ -32,6 +33,8 @@ QP_SOLVER = "proxqp"  # qpsolvers' name for proxsuite's dense proxqp
 QP_EPS_ABS = 1e-9  # proxqp's absolute tolerance on the constraints and the optimality (rad/s, m/s)
 STATUS_SOLVED = "solved"
 STATUS_FAILED = "failed"  # the solver found no solution (infeasible or not converged): q̇ = 0 held
+STATUS_FALLBACK = "solved by daqp"  # proxqp found none, its fallback did (counted apart, not a failure)
+QP_FALLBACK = "daqp"
 
 
 @dataclass(frozen=True)
@@ -233,22 +236,37 @@ class RunLog:
 
     @property
     def failures(self) -> int:
-        return sum(s != STATUS_SOLVED for s in self.status)
+        return sum(s not in (STATUS_SOLVED, STATUS_FALLBACK) for s in self.status)
+
+    @property
+    def fallbacks(self) -> int:
+        return sum(s == STATUS_FALLBACK for s in self.status)
 
 
 def solve_qp(P, c, G, h, lb, ub, init):
-    """(q̇, status) from proxqp through qpsolvers; a solver failure or exception gives (None, status)."""
+    """(q̇, status) from proxqp through qpsolvers, warm-started; where proxqp finds no solution, daqp (an
+    active-set method) is tried before the step counts as failed (seen: proxqp reporting no solution on a
+    feasible JVRC-1 QP with duplicate damper rows at h = 0, which daqp solves). A solver exception or
+    no solution from either gives (None, status)."""
     import qpsolvers
 
     try:
         problem = qpsolvers.Problem(P, c, G if len(h) else None, h if len(h) else None, lb=lb, ub=ub)
         result = qpsolvers.solve_problem(problem, solver=QP_SOLVER, initvals=init, eps_abs=QP_EPS_ABS,
                                          eps_rel=0.0)
+        if not _found(result):
+            result = qpsolvers.solve_problem(problem, solver=QP_FALLBACK)
+            if _found(result):
+                return result.x, STATUS_FALLBACK
     except Exception as exc:  # a solver error is a stated status, not a crash  # noqa: BLE001
         return None, f"{STATUS_FAILED}: {type(exc).__name__}"
-    if not result.found or result.x is None or not np.isfinite(result.x).all():
+    if not _found(result):
         return None, STATUS_FAILED
     return result.x, STATUS_SOLVED
+
+
+def _found(result) -> bool:
+    return bool(result.found) and result.x is not None and bool(np.isfinite(result.x).all())
 
 
 class Controller:

@@ -140,7 +140,7 @@ def run_metrics(log, params, pch_scene) -> dict:
         "qdot_total_variation": float(np.linalg.norm(dq, axis=1).sum()),
         "acc_peak": float(acc.max()), "acc_p99": float(np.percentile(acc, 99)),
         "spikes": int((acc > SPIKE_RAD_S2).sum()),
-        "qp_failures": int(log.failures), "clipped_steps": int(log.clipped),
+        "qp_failures": int(log.failures), "qp_fallbacks": int(log.fallbacks), "clipped_steps": int(log.clipped),
         "ms_distance_median": 1e3 * float(np.median(log.seconds_distance)),
         "ms_qp_median": 1e3 * float(np.median(log.seconds_qp)),
         "ms_step_median": 1e3 * float(np.median(total)), "ms_step_p99": 1e3 * float(np.percentile(total, 99)),
