@@ -240,6 +240,21 @@ def stability_section(out: Path) -> Section:
     return Section("Stability where methods fail", paragraphs, tables)
 
 
+def fuzz_section(out: Path) -> Section:
+    """The fuzz campaign's counts per family, engine and mode, and its heat map."""
+    table = _read(out, "fuzz.csv")
+    document = (out / "fuzz.md").read_text() if (out / "fuzz.md").is_file() else ""
+    notes = [p for p in document.split("\n\n")[1:2] if p.strip()]
+    spq_rows = table[table.engine == "spq"]
+    lines = notes + [f"spq: {int(spq_rows.wrong.sum())} wrong, {int(spq_rows.failed.sum())} failed, "
+                     f"{int(spq_rows.disputed.sum())} disputed in {int(spq_rows.queries.sum()):,} queries; "
+                     "`spq fuzz` runs larger campaigns (reports/fuzz.md holds the last one)."]
+    charts = [Chart(out / "fuzz_heatmap.png", "Share of each engine's queries wrong, failed or disputed per family "
+                    "(log colour scale; each cell's count written in it; n/a: the engine takes no such shapes).")]
+    return Section("Where each engine fails", lines, [("Per family, engine and mode", table)],
+                   [c for c in charts if c.path.is_file()])
+
+
 def depth_section(out: Path) -> Section:
     summary = _read(out, "depth_oracle_summary.csv")
     worst = summary.sort_values("max_abs_error_m", ascending=False).iloc[0]
@@ -285,6 +300,7 @@ LOOK = {
     "pictures_r_tradeoff.png": "Look at the shape as R grows: from a ball-like hull to the link's own hull rounded by r.",
     "pictures_robot.png": "Look at the red witness segments: where the robot comes closest to itself.",
     "pictures_penetration.png": "Look at the red arrow: the shortest translation of B that separates the two bodies.",
+    "fuzz_heatmap.png": "Look for red cells: the families where an engine answers wrong or not at all.",
     "check_history.png": "Look for a step up (left, middle) or down (right) at a commit.",
     "support_scaling.png": "Look at the slopes: the hull-accelerated search grows slowest with the feature count.",
     "continuity_lipschitz.png": "Look at which lines rise as the step shrinks: only polyhedral pairs' witness points jump.",
@@ -512,6 +528,9 @@ SUITES = [
                                                                "pin-damper"]},
                                               speed={True: False, False: True}),
           control_section),
+    # a small campaign (the shrinking of failing cases is spq fuzz's, which writes into tests/)
+    Suite("fuzz", "fuzz", _config("fuzz", queries={True: 4000, False: 200_000}, poses={True: 200, False: 2000},
+                                  shrink=False), fuzz_section),
     Suite("check", "check", check_config, check_section),
 ]
 

@@ -152,10 +152,11 @@ def peer_tol(name: str, value: float, overlap: bool) -> float:
 
 
 def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict, sample: float,
-               peer_references: int = 8, spq_shapes=None, outputs=None) -> CaseResult:
+               peer_references: int = 8, spq_shapes=None, outputs=None, modes=MODES) -> CaseResult:
     """Every query of one case judged (module docstring). peers: {name: Engine} (polytope pairs only);
     sample: share of spq's queries sent to the reference whatever the cheap checks said. spq_shapes,
-    outputs: to judge another spq (a planted bug): its shapes and its {mode: output rows}."""
+    outputs: to judge another spq (a planted bug): its shapes and its {mode: output rows}. modes: the
+    modes whose spq answers are judged (both are computed: each checks the other)."""
     import time
 
     from harness.fuzz.oracle import oracle_shape, spq_shape
@@ -200,7 +201,7 @@ def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict
     dense_left = [DENSE_PER_CASE]
     t2 = time.perf_counter()
     sampled = rng.uniform(size=n) < sample
-    for mode in MODES:
+    for mode in modes:
         o = out[mode]
         flagged = np.flatnonzero(suspects[mode])
         check = np.concatenate([flagged, np.flatnonzero(sampled & ~suspects[mode])])

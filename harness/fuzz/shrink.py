@@ -38,7 +38,7 @@ def still_bad(case: dict, plant=None) -> bool:
         pa, pb = np.asarray(case["pose_a"], float)[None], np.asarray(case["pose_b"], float)[None]
         shapes, outputs = (None, None) if plant is None else plant(case["a"], case["b"], pa, pb)
         result = judge_case(case["family"], case["a"], case["b"], pa, pb, np.random.default_rng(0), {}, sample=1.0,
-                            spq_shapes=shapes, outputs=outputs)
+                            spq_shapes=shapes, outputs=outputs, modes=(case["mode"],))
     except (ValueError, RuntimeError):
         return False
     return any(b.mode == case["mode"] and b.verdict == case["verdict"] for b in result.bad)

@@ -149,7 +149,9 @@ def heatmap(table, path) -> None:
         for j in range(len(bad.columns)):
             q = queries.iat[i, j]
             if np.isfinite(q) and q > 0:
-                ax.text(j, i, f"{int(bad.iat[i, j])}/{int(q)}", ha="center", va="center", fontsize=7)
+                dark = np.isfinite(shown[i, j]) and shown[i, j] > -2.5
+                ax.text(j, i, f"{int(bad.iat[i, j])}/{int(q)}", ha="center", va="center", fontsize=7,
+                        color="white" if dark else "black")
             else:
                 ax.text(j, i, "n/a", ha="center", va="center", fontsize=7, color="grey")
     fig.colorbar(im, ax=ax, label="log10 share of queries wrong, failed or disputed")
