@@ -5,41 +5,58 @@ ball's centre c_f is the centre of the face's big sphere (radius R, tangent to t
 spheres of radius r). An *edge* joins two faces along two shared points; the *vertices* are the
 points on some face. Points of the convex hull that no such ball touches drop out.
 
-Method (NOTES section 2). Every face is a triangle t of the farthest-point Delaunay triangulation of
-the convex-hull points. The centres of the balls through t's points lie on the line through t's
-circumcentre o_t along its unit normal m_t, at o_t + s m_t, with squared radius rt^2 + s^2; the ball
-holds a point p exactly when
+Method (NOTES section 2). The faces are where the boundary of Q = {c : |c - x_i| <= rho for all i},
+the set of admissible big-sphere centres, crosses the farthest-point Voronoi diagram of the
+convex-hull points. Q's vertices are the face centres, its arcs the tori, its sphere patches the
+vertices. The diagram is the dual of the farthest-point Delaunay triangulation (scipy/qhull):
 
-    power(p, s) = |p - o_t|^2 - rt^2 - 2 s m_t.(p - o_t) <= 0,
+- a tetrahedron T is a Voronoi vertex V_T, its circumcentre, with f(V_T) = circumradius rho_T the
+  largest distance to any point; T is *in* (V_T in Q) when rho_T <= rho;
+- a triangle t is a Voronoi edge, the segment of the line through t's circumcentre o_t along its
+  normal m_t between the circumcentres of its two tetrahedra (a ray towards the apex of the only one
+  for a triangle on the triangulation's boundary, whose open end, "infinity", is out). Along it
+  f = sqrt(rt^2 + s^2), so it crosses the boundary of Q at most at s = +-h, h = sqrt(rho^2 - rt^2):
+  once when one end is in and the other out, twice or never when both are out, never when both are in;
+- a single crossing is a face on t centred on the side of t where the *in* tetrahedron's apex lies
+  (f grows away from the in end); a double crossing is two faces, one on each side.
 
-which is linear in s. Along t's farthest-point Voronoi edge only the apexes of t's (one or two)
-neighbouring tetrahedra bind, so the admissible s form an interval (a ray for a triangle on the
-boundary of the triangulation, whose only neighbour bounds it on one side). t is a face at radius
-rho on the side sigma = +-1 exactly when s = sigma h, h = sqrt(rho^2 - rt^2), passes both apexes;
-both sides can hold. Each accepted face is then checked against every hull point, which also removes
-what a joggled triangulation adds.
+Every decision that joins faces is taken once per tetrahedron (in or out) and read by all of its four
+triangles, and the sides come from the tetrahedra's orientations, made consistent across the whole
+triangulation: so around every edge (a, b) of the triangulation the crossings alternate in and out
+and the faces close, whatever rounding does to near-ties (cospherical points, a circumradius equal to
+rho, flat tetrahedra of cocircular points). Pairing is combinatorial too: walking around the edge
+(a, b) from a face, through the run of out tetrahedra on its far side, the crossing that ends the
+run is the face across the torus of (a, b) (the torus's arc of centres joins the two). Geometry
+enters only in the in/out test, the choice between a double crossing and none, and the face centres.
+
+Every face's ball is then checked against every hull point. Where rounding took an in/out decision
+against the geometry (circumradii within rounding of rho: nearly cospherical points, R at its
+minimum), a face lands on the wrong side of its triangle or just off Q, and its ball misses a point:
+the face's tetrahedron within its tie band (the out one first) flips and the faces around it are
+redone, until every ball holds (flips keep the faces closed; they only move crossings).
+
+The circumcentre of a tetrahedron comes from its own points when that is well conditioned, and from
+qhull's lifted hyperplane otherwise, and always when qhull merged several tetrahedra into one facet
+(cospherical points, which it triangulates into tetrahedra that share one hyperplane, some of them
+flat): then they share one centre and one in/out decision, as the exact geometry has it.
 
 Degenerate input:
 - duplicate points are merged first (the first occurrence is kept);
 - a planar cloud (scipy's furthest-site Delaunay needs full rank in 3-D) uses the 2-D farthest-point
   triangulation in its plane: every triangle of it with circumradius <= rho is a face on both sides;
+  across an edge the top face meets the top face of the neighbouring triangle, or, where there is no
+  such face, its own bottom face;
 - a collinear cloud, or a cloud with no face at all (rho just above half a diametral pair), is the
   spindle of its two extreme points: 2 vertices, 1 edge with no face on either side;
-- four or more points on one rho-sphere (cospherical: qhull needs 'QJ', and any triangulation of
-  them is as good as another) are re-triangulated once from the points on that sphere, so that the
-  faces of such a group cover its spherical polygon once, all with the same centre; the edges between
-  them are zero-width tori (``edge_real`` False).
+- four or more points on one rho-sphere give faces with the same centre up to rounding; the edges
+  between them are zero-width tori (``edge_real`` False).
 
-Two faces are neighbours across an edge (a, b) when the big-sphere centre, turning about the line
-through a and b, meets the second after the first (the sch-creator wrapping step, done here only to
-pair up the faces the triangulation found): this pairs the top and bottom faces of a flat cloud
-correctly, where the same pair of points bounds four faces. The same pair of vertices can therefore
-appear in two edges (the top and bottom diagonals of a flat square).
-
-"On a sphere" and "the same centre" are decided with the tolerances below, relative to the cloud's
-size D and to rho: points within them of one sphere are treated as cospherical. Everything is
-computed in coordinates centred on the cloud (rounding then scales with the cloud's size, not with
-its distance to the origin) and returned in the input frame, in the input's units.
+The same pair of vertices can appear in two edges (the top and bottom diagonals of a flat square).
+"Within rho", "the same centre" and "in" are decided with the tolerances below, relative to the
+cloud's size D and to rho. Everything is computed in coordinates centred on the cloud, shifted
+exactly (rounding then scales with the cloud's size, not with its distance to the origin, and the
+difference of two near-duplicate points is exact), and returned in the input frame, in the input's
+units.
 """
 
 from __future__ import annotations
@@ -53,13 +70,39 @@ from spq.stp.topology import NO_FACE, STPTopology
 from spq.validation import as_points
 
 MERGE_TOL = 1e-12  # points closer than this, relative to the cloud's size D, are one point (m/m)
-FLAT_TOL = 1e-11  # a cloud (or a cospherical group) thinner than this, relative to D, is planar (m/m)
+# a cloud thinner than this, relative to D, is planar (m/m): its faces' balls, centred off its plane,
+# then miss the points off it by at most that (VERIFY_TOL leaves 10x), where its tetrahedra would be
+# flat to 1e-15 and their circumcentres noise (a 1.4e-11 thin cloud of 3000 points)
+FLAT_TOL = 1e-10
 POWER_TOL = 1e-12  # slack on |x - c|^2 - rho^2, relative to D (D + rho): inside / on a sphere (m^2/m^2)
-CENTRE_TOL = 1e-9  # two big-sphere centres closer than this, relative to D + rho, coincide (m/m)
+# two big-sphere centres closer than this, relative to D + rho, coincide (m/m): the rounding of a
+# centre (some hundred eps), no more. The torus between two faces that coincide is dropped with the
+# cones it gives its two vertices in the STP-BV's regions of directions; a real torus only a little
+# wider (box corners just above their circumradius: Q's vertices 1e-11 apart; points on a sphere at
+# its enclosing radius: 1e-13 .. 5e-12) must keep them
+CENTRE_TOL = 1e-13
+# a vertex whose faces all nearly coincide (some of its tori within NEAR_SHARED x CENTRE_TOL, some
+# below CENTRE_TOL) keeps all its tori real: the cones of its real tori alone would not bound its
+# region
+NEAR_SHARED = 1e3
 MEB_TOL = 1e-9  # a candidate smallest enclosing ball may miss a point by this, relative to D (m/m)
 VERIFY_TOL = 1e-9  # final check |x - c_f| <= rho + VERIFY_TOL D + ROUNDING_TOL rho (m/m)
 ROUNDING_TOL = 1e-14  # relative rounding of a distance to a centre rho away (50 eps) (m/m)
+# |det| of a tetrahedron's unit edge vectors from one vertex: below this its own circumcentre is
+# ill-conditioned (1/this amplifies rounding) and qhull's hyperplane gives it instead
+WELL_SHAPED = 1e-6
+# |det| of the unit edge vectors above which a tetrahedron is solid: its volume's sign, which
+# rounding cannot flip, must agree with the orientation its neighbours give it (or the triangulation
+# overlaps itself); flatter ones, folded by rounding in qhull's merged facets, need not
+SURE_ORIENTATION = 1e-6
+# rounds of flipping tetrahedra whose crossing faces miss a point (each is flipped once at most)
+MAX_REPAIRS = 256
+# a tetrahedron may flip when its squared circumradius is within TIE_BAND D (D + rho) / shape of
+# rho^2 (shape: |det| of its unit edge vectors). Points on a sphere at their enclosing radius,
+# 264 sizes off the origin, gave radii straddling rho by up to 4e-12 D (D + rho) / shape
+TIE_BAND = 1e-10
 REPORT_DIGITS = 6  # significant digits of the smallest admissible R in the error message
+_CHUNK = 4_000_000  # point x centre pairs per block of the final check (memory, not speed)
 
 
 def build_topology(points, r: float, R: float) -> STPTopology:
@@ -84,18 +127,25 @@ def build_topology(points, r: float, R: float) -> STPTopology:
         pair = np.sort([np.argmin(p @ frame[0]), np.argmax(p @ frame[0])])  # the two ends
         _check_feasible(r, rho, 0.5 * float(np.linalg.norm(p[pair[0]] - p[pair[1]])), scale)
         return _spindle(unique[pair], source[pair], r, R)
-    ctx, cand, r_meb = _candidates_and_radius(p, scale, frame, rank, rho)
-    _check_feasible(r, rho, r_meb, scale)
+    ctx = _Context(p=p, rho=rho, scale=scale)
+    mesh = _planar_triangulation(ctx, frame) if rank == 2 else _solid_triangulation(ctx)
+    _check_feasible(r, rho, _enclosing_radius(ctx, mesh.candidates()), scale)
 
-    faces, centres, on_sphere = _faces(ctx, cand)
-    if len(faces) == 0:
-        pair = cand.longest_edge(p)
+    if rank == 2:
+        face_tri, sigma = _planar_faces(ctx, mesh)
+    else:
+        face_tri, sigma = _solid_faces(ctx, mesh)
+    if len(face_tri) == 0:
+        pair = mesh.candidates().longest_edge(p)
         _check_spindle_holds(ctx, pair)
         return _spindle(unique[pair], source[pair], r, R)
-
-    faces, centres = _regroup_cospherical(ctx, cand.hull, faces, centres, on_sphere)
+    faces, centres = _face_arrays(ctx, mesh, face_tri, sigma)
     _verify_faces(ctx, faces, centres)
-    edges, edge_faces, edge_real = _pair_faces(ctx, faces, centres)
+    if rank == 2:
+        partner = _pair_planar(mesh, faces, face_tri, sigma)
+    else:
+        partner = _pair_solid(mesh, faces, face_tri, sigma)
+    edges, edge_faces, edge_real = _edges(ctx, faces, centres, partner)
 
     used = np.unique(faces)  # ball-hull vertices, in input order (indices of unique rows)
     remap = np.full(len(p), -1, dtype=np.int64)
@@ -114,26 +164,28 @@ def enclosing_radius(points) -> float:
         return 0.0
     if rank == 1:
         return 0.5 * float(np.ptp(p @ frame[0]))
-    return _candidates_and_radius(p, scale, frame, rank, np.inf)[2]
+    ctx = _Context(p=p, rho=np.inf, scale=scale)
+    mesh = _planar_triangulation(ctx, frame) if rank == 2 else _solid_triangulation(ctx)
+    return _enclosing_radius(ctx, mesh.candidates())
 
 
 def _prepared(x: np.ndarray):
-    """Distinct points centred on their mean, their size, principal frame and affine rank."""
+    """Distinct points centred on their mean, their size, principal frame and affine rank.
+
+    The shift is the mean rounded to a multiple of the coarsest spacing of the coordinates, so that
+    subtracting it is exact for a cloud far from the origin: near-duplicate points keep their exact
+    difference (their sliver faces are only well conditioned from it).
+    """
     unique, source = merge_duplicates(x, MERGE_TOL)
     if len(unique) < 2:
         raise ValueError(f"points need at least 2 distinct points; got {len(unique)} (from {len(x)} rows)")
-    origin = unique.mean(axis=0)
+    step = np.spacing(np.abs(unique)).max(axis=0)  # powers of two, one per coordinate
+    origin = np.round(unique.mean(axis=0) / step) * step
     p = unique - origin
     scale = float(np.linalg.norm(np.ptp(p, axis=0)))
     frame, extent = _principal_frame(p)
     rank = int((extent > FLAT_TOL * scale).sum())
     return unique, source, origin, p, scale, frame, rank
-
-
-def _candidates_and_radius(p, scale, frame, rank, rho):
-    ctx = _Context(p=p, rho=rho, scale=scale)
-    cand = _planar_candidates(ctx, frame) if rank == 2 else _solid_candidates(ctx)
-    return ctx, cand, _enclosing_radius(ctx, cand)
 
 
 # ----------------------------------------------------------------------------------------- input
@@ -201,7 +253,7 @@ def _round_up(value: float, digits: int) -> str:
     return f"{math.ceil(value / step) * step:.{digits}g}"
 
 
-# ------------------------------------------------------------------------------------ candidates
+# ---------------------------------------------------------------------------------- triangulation
 
 class _Context:
     """The centred points (n, 3), rho and the cloud size D, with the tolerances derived from them."""
@@ -213,6 +265,36 @@ class _Context:
         self.verify_tol = VERIFY_TOL * scale + ROUNDING_TOL * rho
 
 
+class _Mesh:
+    """The farthest-point Delaunay triangulation of the hull points, as the construction reads it.
+
+    hull : (h,) point indices it uses. tri : (k, 3) point indices of its triangles, each once, wound
+    as seen from their first tetrahedron (solid) or counter-clockwise about the plane's normal
+    (planar); o (k, 3), rt2 (k,), m (k, 3): circumcentres, squared circumradii, unit normals of that
+    winding. apex : (k, 2) point index of the fourth vertex of the tetrahedra on either side (-1:
+    none; planar: none at all). Solid only: simp (K, 4), nb (K, 4) point indices and neighbours of
+    the tetrahedra, tid (K, 4) the triangle opposite each vertex, side_a (k,) +-1 the side of m on
+    which the first tetrahedron lies, tet (k, 2) the tetrahedra on either side (-1: infinity), and
+    centre (K, 3), excess (K,), shape (K,) each tetrahedron's circumcentre, how far out of Q it lies
+    (<= 0: in) and how far from flat (see _circumcentres). Planar only: nb2 (k, 3), the triangle
+    across the edge opposite each vertex (-1: none).
+    """
+
+    def __init__(self, hull, tri, apex, planar: bool):
+        self.hull, self.tri, self.apex, self.planar = hull, tri, apex, planar
+
+    def circles(self, p: np.ndarray) -> None:
+        self.o, self.rt2, self.m = _circumcircles(p[self.tri[:, 0]], p[self.tri[:, 1]], p[self.tri[:, 2]])
+
+    def candidates(self) -> "_Candidates":
+        """The triangles with their apex heights and powers, for the enclosing radius."""
+        q = self.p_apex - self.o[:, None, :]
+        d = np.einsum("kj,kij->ki", self.m, q)
+        has = self.apex >= 0
+        e = np.where(has, np.einsum("kij,kij->ki", q, q) - self.rt2[:, None], -np.inf)
+        return _Candidates(self.hull, self.tri, self.o, self.rt2, self.m, np.where(has, d, 0.0), e)
+
+
 class _Candidates:
     """Triangles of the farthest-point triangulation, with their circles and binding apexes.
 
@@ -222,17 +304,10 @@ class _Candidates:
     d, e : (k, 2) for the apexes of the (up to two) neighbouring tetrahedra: height over the
         triangle's plane and power(apex, 0) = |apex - o|^2 - rt^2 (e = -inf where there is none).
         The ball centred at o + s m through the triangle holds the apex iff e - 2 s d <= 0.
-    edge_pairs : (e, 2) the edges of the triangulation, each once.
     """
 
     def __init__(self, hull, tri, o, rt2, m, d, e):
         self.hull, self.tri, self.o, self.rt2, self.m, self.d, self.e = hull, tri, o, rt2, m, d, e
-        pairs = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-        self.edge_pairs = np.unique(np.sort(pairs, axis=1), axis=0)
-
-    def holds_apexes(self, s: np.ndarray, slack: np.ndarray) -> np.ndarray:
-        """(k,) bool: the centre o + s m (s (k,)) holds both apexes, up to slack (k,) on the power."""
-        return (self.e - 2.0 * s[:, None] * self.d).max(axis=1) <= slack
 
     def centre_range(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi), each (k,): the s for which o + s m holds both apexes (lo > hi: none)."""
@@ -247,16 +322,26 @@ class _Candidates:
         return lo, hi
 
     def longest_edge(self, p: np.ndarray) -> np.ndarray:
-        """The two ends (2,) of the longest edge of the triangulation, for points p (n, 3)."""
-        d = np.linalg.norm(p[self.edge_pairs[:, 0]] - p[self.edge_pairs[:, 1]], axis=1)
-        return self.edge_pairs[int(np.argmax(d))]
+        """The two ends (2,) of the longest edge of the triangulation, for points p (n, 3), the
+        smaller index first."""
+        pairs = np.concatenate([self.tri[:, [0, 1]], self.tri[:, [1, 2]], self.tri[:, [2, 0]]])
+        d = np.linalg.norm(p[pairs[:, 0]] - p[pairs[:, 1]], axis=1)
+        return np.sort(pairs[int(np.argmax(d))])
 
 
 def _circumcircles(a: np.ndarray, b: np.ndarray, c: np.ndarray):
     """Circumcentres (k, 3), squared circumradii (k,) and unit normals (k, 3) of triangles (a, b, c).
 
-    The normal is along (b - a) x (c - a). A degenerate triangle gets rt2 = inf.
+    The normal is along (b - a) x (c - a). A degenerate triangle gets rt2 = inf. Each triangle is
+    solved from its widest corner (the vertex opposite its longest side), turned to the front
+    cyclically (which keeps the normal): there the two sides are far from parallel and their cross
+    product keeps its precision, also for a sliver between near-duplicate points.
     """
+    pts = np.stack([a, b, c], axis=1)  # (k, 3 vertices, 3)
+    side = np.stack([((c - b) ** 2).sum(1), ((a - c) ** 2).sum(1), ((b - a) ** 2).sum(1)], axis=1)
+    first = np.argmax(side, axis=1)  # opposite the longest side
+    turn = (first[:, None] + np.arange(3)) % 3
+    a, b, c = (pts[np.arange(len(pts)), turn[:, k]] for k in range(3))
     u, v = b - a, c - a
     w = np.cross(u, v)
     w2 = np.einsum("ij,ij->i", w, w)
@@ -272,72 +357,214 @@ def _circumcircles(a: np.ndarray, b: np.ndarray, c: np.ndarray):
     return o, rt2, m
 
 
-def _furthest_delaunay(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Simplices (k, d+1) and neighbours (k, d+1) of the furthest-site Delaunay of q (n, d).
+def _furthest_delaunay(q: np.ndarray, joggle: bool = False):
+    """Simplices (k, d+1), neighbours (k, d+1) and lifted centres (k, d) of the furthest-site
+    Delaunay of q (n, d), and whether qhull joggled it.
 
-    scipy's, joggled ('QJ') when qhull rejects the input or drops a point: cospherical (cocircular
-    in 2-D) input makes qhull stop with QH6019/QH6154, and a joggled triangulation is one of the
-    valid ones up to ties, which the later steps resolve. d + 1 points are their own simplex (qhull
-    needs d + 2 to lift them).
+    scipy's, joggled ('QJ') when asked, when qhull rejects the input (cospherical, in 2-D
+    cocircular, input makes it stop with QH6019/QH6154) or when it drops a point (q are hull
+    vertices: each must be in a simplex); a joggled triangulation is a valid one of points moved by
+    rounding amounts. The lifted centre of a simplex is the centre
+    of the sphere of its hyperplane in qhull's lifting (inf where that is vertical): the tetrahedra
+    qhull made from one merged facet share it. d + 1 points are their own simplex (qhull needs d + 2
+    to lift them); their centre is left nan.
     """
     n, d = q.shape
     if n == d + 1:
-        return np.arange(n)[None], np.full((1, n), -1)
-    try:
-        tri = Delaunay(q, furthest_site=True)
-        if len(tri.coplanar) == 0:
-            return tri.simplices, tri.neighbors
-    except QhullError:
-        pass
-    tri = Delaunay(q, furthest_site=True, qhull_options="QJ")
-    return tri.simplices, tri.neighbors
+        return np.arange(n)[None], np.full((1, n), -1), np.full((1, d), np.nan), False
+    tri = None
+    if not joggle:
+        try:
+            tri = Delaunay(q, furthest_site=True)
+            # every point of q is a hull vertex, hence a vertex of the triangulation; qhull can leave
+            # some out without listing them as coplanar (all of q on one sphere: one merged facet)
+            if len(tri.coplanar) or len(np.unique(tri.simplices)) < n:
+                tri = None
+        except QhullError:
+            tri = None
+    if tri is None:
+        joggle = True
+        tri = Delaunay(q, furthest_site=True, qhull_options="QJ")
+    eq = tri.equations
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lifted = -eq[:, :d] / (2.0 * eq[:, d:d + 1] * tri.paraboloid_scale)
+    lifted[~np.isfinite(lifted).all(axis=1)] = np.inf
+    return tri.simplices, tri.neighbors, lifted, joggle
 
 
-def _solid_candidates(ctx: _Context) -> _Candidates:
-    """Triangles of the 3-D farthest-point triangulation of the hull points, with their ranges."""
+_OTHERS = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])  # the triangle opposite vertex j
+# side of vertex j of a positively oriented tetrahedron relative to the normal of the triangle
+# _OTHERS[j] (the sign of the permutation (_OTHERS[j], j))
+_APEX_SIDE = np.array([-1, 1, -1, 1])
+
+
+def _solid_triangulation(ctx: _Context, joggle: bool = False) -> _Mesh:
+    """The 3-D farthest-point triangulation of the hull points, its triangles, their circles and
+    sides, the tetrahedra's consistent orientations and their in/out decisions."""
     p = ctx.p
     hull = ConvexHull(p).vertices
-    simp, nb = _furthest_delaunay(p[hull])
-    n_simp = len(simp)
-    others = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
-    tris, apex1, apex2 = [], [], []
-    for k in range(4):  # the triangle opposite vertex k of each tetrahedron, once per triangle
-        nbk = nb[:, k]
-        keep = (nbk < 0) | (nbk > np.arange(n_simp))
-        tris.append(simp[keep][:, others[k]])
-        apex1.append(simp[keep, k])
-        t_idx, n_idx = np.nonzero(keep)[0], nbk[keep]
-        a2 = np.full(len(t_idx), -1, dtype=np.int64)
+    simp, nb, lifted, joggled = _furthest_delaunay(p[hull], joggle)
+    simp = hull[simp]
+    K = len(simp)
+    tet_a, j_a, tet_b, j_b = [], [], [], []
+    for j in range(4):  # the triangle opposite vertex j of each tetrahedron, once per triangle
+        nbj = nb[:, j]
+        keep = (nbj < 0) | (nbj > np.arange(K))
+        t_idx = np.nonzero(keep)[0]
+        n_idx = nbj[keep]
+        back = np.full(len(t_idx), -1, dtype=np.int64)
         inner = n_idx >= 0
-        back = np.argmax(nb[n_idx[inner]] == t_idx[inner, None], axis=1)
-        a2[inner] = simp[n_idx[inner], back]
-        apex2.append(a2)
-    tri = hull[np.concatenate(tris)]
-    apex1 = hull[np.concatenate(apex1)]
-    a2 = np.concatenate(apex2)
-    apex2 = np.where(a2 >= 0, hull[np.maximum(a2, 0)], -1)
+        back[inner] = np.argmax(nb[n_idx[inner]] == t_idx[inner, None], axis=1)
+        tet_a.append(t_idx)
+        j_a.append(np.full(len(t_idx), j))
+        tet_b.append(n_idx)
+        j_b.append(back)
+    tet_a, j_a, tet_b, j_b = map(np.concatenate, (tet_a, j_a, tet_b, j_b))
+    tri = simp[tet_a[:, None], _OTHERS[j_a]]
+    tid = np.empty((K, 4), dtype=np.int64)
+    tid[tet_a, j_a] = np.arange(len(tri))
+    inner = tet_b >= 0
+    tid[tet_b[inner], j_b[inner]] = np.nonzero(inner)[0]
 
-    o, rt2, m = _circumcircles(p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]])
-    apex = np.stack([apex1, apex2], axis=1)
-    q = p[np.maximum(apex, 0)] - o[:, None, :]
-    d = np.einsum("kj,kij->ki", m, q)
-    e = np.where(apex >= 0, np.einsum("kij,kij->ki", q, q) - rt2[:, None], -np.inf)
-    return _Candidates(hull, tri, o, rt2, m, np.where(apex >= 0, d, 0.0), e)
+    orient, conflict = _orientations(p, simp, tet_a, j_a, tet_b, j_b, tri)
+    if conflict and not joggled:  # qhull's merged facets left overlapping tetrahedra: joggle instead
+        return _solid_triangulation(ctx, joggle=True)
+    if conflict:
+        raise RuntimeError("the farthest-point triangulation is not consistently oriented")
+
+    mesh = _Mesh(hull, tri, np.stack([simp[tet_a, j_a],
+                                      np.where(inner, simp[np.maximum(tet_b, 0), np.maximum(j_b, 0)], -1)],
+                                     axis=1), planar=False)
+    mesh.circles(p)
+    mesh.p_apex = p[np.maximum(mesh.apex, 0)]
+    mesh.simp, mesh.nb, mesh.tid = simp, nb, tid
+    mesh.tet = np.stack([tet_a, tet_b], axis=1)
+    mesh.side_a = _APEX_SIDE[j_a] * orient[tet_a]
+    mesh.centre, mesh.excess, mesh.shape = _circumcentres(ctx, simp, lifted)
+    return mesh
 
 
-def _planar_candidates(ctx: _Context, frame: np.ndarray) -> _Candidates:
-    """Triangles of the 2-D farthest-point triangulation of a planar cloud (in its plane).
+def _orientations(p, simp, tet_a, j_a, tet_b, j_b, tri) -> tuple[np.ndarray, bool]:
+    """+-1 per tetrahedron (K,): the orientation of its vertex order, consistent across shared
+    triangles (the apexes of two neighbours lie on opposite sides), and whether a clearly solid
+    tetrahedron disagrees with its own volume's sign (the triangulation overlaps itself).
+
+    It is propagated from the most solid tetrahedron over the neighbour graph, not read from each
+    volume's sign: qhull's triangulation of a merged (cospherical) facet, or of joggled points read
+    at their true positions, holds flat tetrahedra folded by rounding, whose volume has the sign of
+    noise; their neighbours say which side their apexes are on.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order
+
+    vol = _widest_corner(p, simp)[2]
+    K = len(simp)
+    inner = tet_b >= 0
+    a, b = tet_a[inner], tet_b[inner]
+    # parity of the triangle's winding in b relative to a: even iff b's order is a rotation of a's
+    tb = simp[b[:, None], _OTHERS[j_b[inner]]]
+    ta = tri[inner]
+    pos0 = np.argmax(ta == tb[:, :1], axis=1)
+    pos1 = np.argmax(ta == tb[:, 1:2], axis=1)
+    parity = np.where((pos1 - pos0) % 3 == 1, 1, -1)
+    # apexes on opposite sides: o_b = -parity * side(j_a) * side(j_b) * o_a
+    rel = -parity * _APEX_SIDE[j_a[inner]] * _APEX_SIDE[j_b[inner]]
+    link = coo_matrix((np.concatenate([rel, rel]) + 2, (np.concatenate([a, b]), np.concatenate([b, a]))),
+                      shape=(K, K)).tocsr()  # rel + 2 in {1, 3}: no stored zeros
+    orient = np.zeros(K, dtype=np.int64)
+    for root in np.argsort(-np.abs(vol)):
+        if orient[root]:
+            continue
+        order, pred = breadth_first_order(link, root, directed=False, return_predecessors=True)
+        orient[root] = 1 if vol[root] >= 0 else -1
+        if len(order) == 1:
+            continue
+        rel_pred = np.asarray(link[pred[order[1:]], order[1:]]).ravel() - 2
+        for k, q, s in zip(order[1:], pred[order[1:]], rel_pred):
+            orient[k] = s * orient[q]
+        if (orient != 0).all():
+            break
+    solid = np.abs(vol) > SURE_ORIENTATION
+    conflict = bool((orient[b] != rel * orient[a]).any() or (orient[solid] * vol[solid] < 0).any())
+    return orient, conflict
+
+
+def _widest_corner(p: np.ndarray, simp: np.ndarray):
+    """For each tetrahedron (K, 4 point indices): the unit edge vectors (K, 3, 3) and lengths (K, 3)
+    from the vertex where they are farthest from coplanar, the volume's sign times |det| of those
+    unit vectors (K,) (+-1 for a right corner, 0 for a flat tetrahedron), and that vertex's position
+    in the row (K,).
+
+    From a vertex of a near-duplicate pair the short edge stays exact and square to the others; from
+    a far vertex the two edges to the pair are almost parallel.
+    """
+    parity = (1.0, -1.0, 1.0, -1.0)  # (k, the others in order) against (0, 1, 2, 3)
+    best = None
+    for k in range(4):
+        e = p[simp[:, [j for j in range(4) if j != k]]] - p[simp[:, k]][:, None, :]
+        length = np.linalg.norm(e, axis=2)
+        unit = e / length[..., None]
+        vol = parity[k] * np.linalg.det(unit)
+        if best is None:
+            best = [unit, length, vol, np.zeros(len(simp), dtype=np.int64)]
+            continue
+        better = np.abs(vol) > np.abs(best[2])
+        best[0][better], best[1][better], best[2][better], best[3][better] = unit[better], length[better], \
+            vol[better], k
+    return tuple(best)
+
+
+def _circumcentres(ctx: _Context, simp: np.ndarray, lifted: np.ndarray):
+    """Circumcentres (K, 3) of the tetrahedra (inf where there is none), how far each lies out of
+    Q (K,): its squared circumradius less rho^2 and the power tolerance (<= 0: in, so that points on
+    one rho-sphere count as in), and its shape (K,), |det| of its unit edge vectors.
+
+    The circumcentre is solved from the tetrahedron's own points (from its widest corner, edge
+    vectors scaled to unit length, so that a short edge, as between near-duplicate points, costs no
+    accuracy) when it is well shaped and not part of a merged facet; otherwise it is qhull's
+    (lifted), which the tetrahedra of a merged facet share. The radius is the largest distance to
+    its four points, which the centre's rounding can only increase.
+    """
+    p = ctx.p
+    unit, length, vol, base = _widest_corner(p, simp)
+    shape = np.abs(vol)
+    v0 = p[simp[np.arange(len(simp)), base]]
+    finite = np.isfinite(lifted).all(axis=1)
+    _, group, count = np.unique(np.where(finite[:, None], lifted, 0.0), axis=0, return_inverse=True,
+                                return_counts=True)
+    merged = finite & (count[group.ravel()] > 1)
+    own = ((shape > WELL_SHAPED) & ~merged) | np.isnan(lifted).any(axis=1)  # nan: qhull never saw it
+    centre = lifted.copy()
+    if own.any():
+        centre[own] = v0[own] + np.linalg.solve(unit[own], 0.5 * length[own][..., None])[..., 0]
+    nan = ~np.isfinite(centre).all(axis=1) & ~own
+    if nan.any():
+        centre[nan] = np.inf
+    with np.errstate(invalid="ignore"):
+        r2 = ((p[simp] - centre[:, None, :]) ** 2).sum(axis=2).max(axis=1)
+    r2 = np.where(np.isfinite(r2), r2, np.inf)
+    return centre, r2 - (ctx.rho * ctx.rho + ctx.power_tol), shape
+
+
+def _planar_triangulation(ctx: _Context, frame: np.ndarray) -> _Mesh:
+    """The 2-D farthest-point triangulation of a planar cloud (in its plane), triangles wound
+    counter-clockwise about frame[2], with their neighbours across each edge.
 
     Every such triangle's circle holds every point, so the centres o + s m hold them for all s.
     """
     p = ctx.p
     q = p @ frame[:2].T
     hull = ConvexHull(q).vertices
-    simp, _ = _furthest_delaunay(q[hull])
-    tri = hull[simp]
-    o, rt2, m = _circumcircles(p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]])
-    none = np.zeros((len(tri), 2))
-    return _Candidates(hull, tri, o, rt2, m, none, none - np.inf)
+    simp, nb, _, _ = _furthest_delaunay(q[hull])
+    a, b, c = (q[hull[simp[:, k]]] for k in range(3))
+    cw = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
+    simp = np.where(cw[:, None], simp[:, [0, 2, 1]], simp)
+    nb = np.where(cw[:, None], nb[:, [0, 2, 1]], nb)
+    mesh = _Mesh(hull, hull[simp], np.full((len(simp), 2), -1), planar=True)
+    mesh.circles(p)
+    mesh.p_apex = np.zeros((len(simp), 2, 3))
+    mesh.nb2 = nb
+    return mesh
 
 
 # ------------------------------------------------------------------------------ enclosing ball
@@ -373,195 +600,136 @@ def _enclosing_radius(ctx: _Context, cand: _Candidates) -> float:
 
 # ------------------------------------------------------------------------------------------ faces
 
-def _faces(ctx: _Context, cand: _Candidates):
-    """Faces (F, 3), counter-clockwise from outside, their big-sphere centres (F, 3), and which hull
-    points (h, F) bool lie on each face's sphere (|x - c|^2 - rho^2 >= -power tolerance)."""
-    rho2 = ctx.rho * ctx.rho
-    near = cand.rt2 <= rho2 + ctx.power_tol
-    h = np.sqrt(np.maximum(rho2 - cand.rt2, 0.0), where=near, out=np.zeros(len(cand.tri)))
-    # |x - c|^2 - rho^2 = |x|^2 - 2 x.c + const, const = |o|^2 - rt^2 + 2 s m.o: this form keeps the
-    # rounding at eps D (D + rho) where |c|^2 - rho^2 would lose eps rho^2
-    tris, centres, const = [], [], []
-    for sigma in (1.0, -1.0):
-        s = sigma * h
-        # rounding in e - 2 s d grows with |s| D: the slack does too
-        ok = near & cand.holds_apexes(s, POWER_TOL * ctx.scale * (ctx.scale + np.abs(s)))
-        c = cand.o[ok] + s[ok, None] * cand.m[ok]
-        t = cand.tri[ok]
-        # the outward normal points away from the centre: -sigma m, so sigma = +1 reverses (a, b, c)
-        tris.append(t[:, [0, 2, 1]] if sigma > 0 else t)
-        centres.append(c)
-        const.append(np.einsum("ij,ij->i", cand.o[ok], cand.o[ok]) - cand.rt2[ok]
-                     + 2.0 * s[ok] * np.einsum("ij,ij->i", cand.m[ok], cand.o[ok]))
-    faces, centres, const = np.concatenate(tris), np.concatenate(centres), np.concatenate(const)
-    # the triangulation may be joggled or hold ties: keep what holds every hull point
-    x = ctx.p[cand.hull]
-    power = (x * x).sum(axis=1)[:, None] - 2.0 * x @ centres.T + const[None, :]
-    keep = power.max(axis=0) <= ctx.power_tol
-    return faces[keep], centres[keep], power[:, keep] >= -ctx.power_tol
+def _solid_faces(ctx: _Context, mesh: _Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The crossings of the boundary of Q with the Voronoi edges: triangle index (F,) and side (F,)
+    +-1 of each face's centre relative to the triangle's normal m.
 
-
-def _regroup_cospherical(ctx: _Context, hull: np.ndarray, faces: np.ndarray, centres: np.ndarray,
-                         on: np.ndarray):
-    """Replace the faces whose rho-sphere holds 4+ hull points by one triangulation per sphere.
-
-    hull : (h,) point indices; on : (h, F) bool, hull point i on the sphere of face f.
-    The triangulation's choice among cospherical points can overlap or leave out triangles (a flat
-    joggled tetrahedron gives both diagonals of a square); the points on one sphere define the
-    face's spherical polygon, triangulated once here, every triangle with the same centre (the mean
-    of the group's centres). A face joins the group of a sphere that holds its three points (also a
-    face that, by rounding, does not see a fourth point on its own sphere). The common case, a
-    polygon of cocircular points on one side of its centre (the quads of a CAD mesh), is done for all
-    groups of one size at once; the rest one by one.
+    Where rounding decided a tetrahedron's in/out against the geometry (circumradii within rounding
+    of rho, in clusters of nearly cospherical points), a crossing face's ball misses a point: the
+    tetrahedron of that face (the out one first) is flipped if it is within its tie band, and the
+    faces around it redone, until every face's ball holds the hull points. Flipping keeps the faces
+    closed (closure holds for any decisions); it only moves crossings.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    degenerate = np.nonzero(on.sum(axis=0) > 3)[0]
-    if len(degenerate) == 0:
-        return faces, centres
-    row = np.full(len(ctx.p), -1, dtype=np.int64)
-    row[hull] = np.arange(len(hull))
-    t = row[faces]
-    on_deg = on[:, degenerate]
-    inside = on_deg[t[:, 0]] & on_deg[t[:, 1]] & on_deg[t[:, 2]]  # (F, D): f's points on g's sphere
-    # one link per face, to the first sphere that holds it, is enough to connect a group (all its
-    # faces are held by its first sphere) and keeps the graph small for a polygon of many points
-    f_idx = np.nonzero(inside.any(axis=1))[0]
-    g_idx = np.argmax(inside[f_idx], axis=1)
-    graph = coo_matrix((np.ones(len(f_idx)), (f_idx, degenerate[g_idx])), shape=(len(faces),) * 2)
-    _, comp = connected_components(graph, directed=False)
-    grouped = np.isin(comp, comp[degenerate])
-    members = np.nonzero(grouped)[0]
-    _, group = np.unique(comp[members], return_inverse=True)  # 0 .. G-1 per grouped face
-    n_groups = int(group.max()) + 1
-
-    # the points on each group's sphere: (group, hull row) pairs, sorted by group
-    face_of, pt = np.nonzero(on[:, members].T)
-    pairs = np.unique(group[face_of] * len(hull) + pt)
-    pair_group, pair_pt = pairs // len(hull), hull[pairs % len(hull)]
-    size = np.bincount(pair_group, minlength=n_groups)
-    start = np.concatenate([[0], np.cumsum(size)[:-1]])
-    first = np.empty(n_groups, dtype=np.int64)
-    first[group[::-1]] = members[::-1]  # one face of each group
-    centre = np.zeros((n_groups, 3))
-    np.add.at(centre, group, centres[members])
-    centre /= np.bincount(group, minlength=n_groups)[:, None]
-    # a group whose centres all coincide is one sphere; the others need a closer look
-    spread = np.linalg.norm(centres[members] - centres[first[group]], axis=1) > ctx.centre_tol
-    simple = np.ones(n_groups, dtype=bool)
-    simple[group[spread]] = False
-
-    new_faces, new_centres = [faces[~grouped]], [centres[~grouped]]
-    rest = list(np.nonzero(~simple)[0])
-    for k in np.unique(size[simple]):
-        gs = np.nonzero(simple & (size == k))[0]
-        ring = pair_pt[start[gs][:, None] + np.arange(k)]
-        tri, ok = _fan_cocircular(ctx, ring, centre[gs])
-        new_faces.append(tri[ok].reshape(-1, 3))
-        new_centres.append(np.repeat(centre[gs[ok]], k - 2, axis=0))
-        rest.extend(gs[~ok])
-    for g in rest:
-        on_sphere = pair_pt[start[g]:start[g] + size[g]]
-        for c in _distinct_spheres(ctx, on_sphere, centres[members[group == g]]):
-            tri, c = _triangulate_cap(ctx, on_sphere, c)
-            new_faces.append(tri)
-            new_centres.append(np.repeat(c[None], len(tri), axis=0))
-    return np.concatenate(new_faces), np.concatenate(new_centres)
+    in_ = mesh.excess <= 0.0
+    dips = _dips_into_q(ctx, mesh)
+    miss = np.full((len(mesh.tri), 2), np.nan)  # per triangle and side (+m, -m): its ball's miss
+    flipped = np.zeros(len(in_), dtype=bool)
+    # the rounding of a squared circumradius grows as the tetrahedron flattens (1 / shape)
+    band = TIE_BAND * ctx.scale * (ctx.scale + ctx.rho) / np.maximum(mesh.shape, WELL_SHAPED)
+    for _ in range(MAX_REPAIRS):
+        face_tri, sigma, double = _crossings(mesh, in_, dips)
+        col = (sigma < 0).astype(np.int64)
+        todo = np.isnan(miss[face_tri, col])
+        if todo.any():
+            miss[face_tri[todo], col[todo]] = _misses(ctx, mesh, face_tri[todo], sigma[todo])
+        bad = miss[face_tri, col] > ctx.verify_tol
+        if not bad.any():
+            break
+        dips[face_tri[bad & double]] = False  # a double crossing is both faces or none
+        t = np.unique(face_tri[bad & ~double])
+        if len(t) == 0:
+            continue
+        a, b = mesh.tet[t, 0], mesh.tet[t, 1]
+        t_in = np.where(in_[a], a, b)
+        t_out = np.where(in_[a], b, a)
+        # each tetrahedron flips once at most (no cycles), and only within its tie band; out ones
+        # first: a cluster of ties (points on one sphere at its enclosing radius) is one ball
+        can = np.append(~flipped & (np.abs(mesh.excess) <= band), False)  # index -1: infinity
+        pick = np.where(can[t_out], t_out, np.where(can[t_in], t_in, -1))
+        pick = np.unique(pick[pick >= 0])
+        if len(pick) == 0:
+            break
+        in_[pick] = ~in_[pick]
+        flipped[pick] = True
+    return face_tri, sigma
 
 
-def _distinct_spheres(ctx: _Context, on_sphere: np.ndarray, centres: np.ndarray) -> list[np.ndarray]:
-    """The distinct centres (3,) among centres (k, 3) of faces with the same points on their spheres.
+def _crossings(mesh: _Mesh, in_: np.ndarray, dips: np.ndarray):
+    """Faces for the decisions in_ (K,) and the double crossings dips (k,): triangle (F,), side (F,)
+    and whether each face is half of a double crossing (F,)."""
+    inside = np.append(in_, False)  # index -1: infinity, out
+    in_a, in_b = inside[mesh.tet[:, 0]], inside[mesh.tet[:, 1]]
+    single = in_a != in_b
+    # f grows from the in end to the out end: the crossing is on the in tetrahedron's apex side
+    side = np.where(in_a, mesh.side_a, -mesh.side_a)
+    double = ~in_a & ~in_b & dips
+    t_single = np.nonzero(single)[0]
+    t_double = np.nonzero(double)[0]
+    face_tri = np.concatenate([t_single, t_double, t_double])
+    sigma = np.concatenate([side[t_single], np.ones(len(t_double), np.int64),
+                            -np.ones(len(t_double), np.int64)])
+    is_double = np.concatenate([np.zeros(len(t_single), bool), np.ones(2 * len(t_double), bool)])
+    return face_tri, sigma, is_double
 
-    Points not in one plane are on one sphere only: one centre (differences are rounding, or an
-    ill-conditioned rho just above the enclosing radius). Points in one plane lie on a circle, on the
-    spheres centred on its axis at +-h, h = sqrt(rho^2 - rt^2): one centre per side, or one centre
-    in the plane when h is within the tolerance.
+
+def _misses(ctx: _Context, mesh: _Mesh, face_tri: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """By how much the ball of each face (F,) misses the farthest hull point (<= 0: holds them)."""
+    return _farthest(ctx.p[mesh.hull], _centres(ctx, mesh, face_tri, sigma)) - ctx.rho
+
+
+def _farthest(x: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """max_i |x_i - c_k| (k,) over points x (n, 3) near the origin, in blocks. Expanded, the rounding
+    of a centre rho away is a few eps rho, inside ROUNDING_TOL."""
+    sq = (x * x).sum(axis=1)
+    far = np.empty(len(centres))
+    step = max(1, _CHUNK // len(x))
+    for s in range(0, len(centres), step):
+        c = centres[s:s + step]
+        d2 = sq[:, None] - 2.0 * x @ c.T + (c * c).sum(axis=1)[None, :]
+        far[s:s + step] = np.sqrt(np.maximum(d2.max(axis=0), 0.0))
+    return far
+
+
+def _dips_into_q(ctx: _Context, mesh: _Mesh) -> np.ndarray:
+    """(k,) bool: rt <= rho and the Voronoi edge of the triangle, from one tetrahedron's circumcentre
+    to the other's (to infinity on the apex side of the only one), holds both s = -h and s = +h.
+
+    Read from the circumcentres, not from the apexes: the apex of a flat tetrahedron lies on the
+    triangle's circle and bounds nothing, while its circumcentre (qhull's) still bounds the edge.
     """
-    x = ctx.p[on_sphere]
-    mean = x.mean(axis=0)
-    _, _, vt = np.linalg.svd(x - mean, full_matrices=False)
-    off = (x - mean) @ vt[2]
-    if np.ptp(off) > FLAT_TOL * ctx.scale:
-        return [centres.mean(axis=0)]
-    height = (centres - mean) @ vt[2]
-    if np.abs(height).max() ** 2 <= ctx.power_tol:
-        return [centres.mean(axis=0)]
-    return [centres[side].mean(axis=0) for side in (height > 0, height <= 0) if side.any()]
+    near = mesh.rt2 <= ctx.rho * ctx.rho + ctx.power_tol
+    h = np.sqrt(np.maximum(ctx.rho * ctx.rho - mesh.rt2, 0.0))
+    ends = []
+    for k in (0, 1):
+        tet = mesh.tet[:, k]
+        with np.errstate(invalid="ignore"):
+            s = np.einsum("ij,ij->i", mesh.centre[np.maximum(tet, 0)] - mesh.o, mesh.m)
+        # infinity: the ray runs to the apex side of the only tetrahedron
+        ends.append(np.where(tet >= 0, s, mesh.side_a * np.inf))
+    lo, hi = np.minimum(*ends), np.maximum(*ends)
+    with np.errstate(invalid="ignore"):
+        return near & (lo <= -h) & (hi >= h)
 
 
-def _fan_cocircular(ctx: _Context, members: np.ndarray, c: np.ndarray):
-    """Fans of G polygons of k points each, members (G, k), seen from centres c (G, 3).
-
-    Returns triangles (G, k - 2, 3), counter-clockwise seen from outside (away from c), and ok (G,)
-    bool: the points are coplanar (hence cocircular, being on one sphere: in convex position, so
-    their angle about the centroid orders them) and c is clearly off their plane. The plane comes
-    from three far-apart points of each polygon (a batched SVD costs more than the rest together).
-    """
-    g = np.arange(len(members))
-    x = ctx.p[members]  # (G, k, 3)
-    base = x[:, 0]
-    far = np.argmax(((x - base[:, None]) ** 2).sum(axis=2), axis=1)
-    e1 = x[g, far] - base
-    e1 /= np.linalg.norm(e1, axis=1)[:, None]
-    normal = np.cross(e1[:, None, :], x - base[:, None])  # (G, k, 3)
-    widest = np.argmax((normal ** 2).sum(axis=2), axis=1)
-    normal = normal[g, widest]
-    normal /= np.linalg.norm(normal, axis=1)[:, None]
-    centroid = x.mean(axis=1)
-    height = np.einsum("gj,gj->g", centroid - c, normal)  # signed distance of the plane from c
-    normal *= np.where(height < 0, -1.0, 1.0)[:, None]  # now pointing away from c: outward
-    off = np.einsum("gkj,gj->gk", x - centroid[:, None], normal)
-    ok = (np.ptp(off, axis=1) <= FLAT_TOL * ctx.scale) & (height * height > ctx.power_tol)
-    e2 = np.cross(normal, e1)
-    d = x - centroid[:, None]
-    angle = np.arctan2(np.einsum("gkj,gj->gk", d, e2), np.einsum("gkj,gj->gk", d, e1))
-    poly = np.take_along_axis(members, np.argsort(angle, axis=1), axis=1)  # counter-clockwise
-    k = members.shape[1]
-    fan = np.stack([np.repeat(poly[:, :1], k - 2, axis=1), poly[:, 1:-1], poly[:, 2:]], axis=2)
-    return fan, ok
+def _planar_faces(ctx: _Context, mesh: _Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Every triangle of the planar triangulation with rt <= rho, on both sides."""
+    t = np.nonzero(mesh.rt2 <= ctx.rho * ctx.rho + ctx.power_tol)[0]
+    return np.concatenate([t, t]), np.concatenate([np.ones(len(t), np.int64), -np.ones(len(t), np.int64)])
 
 
-def _triangulate_cap(ctx: _Context, members: np.ndarray, c: np.ndarray):
-    """Triangles (k, 3) covering the part of the sphere (c, rho) spanned by the points `members`,
-    and the centre (3,) to give them.
+def _centres(ctx: _Context, mesh: _Mesh, face_tri: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Big-sphere centres (F, 3) of the faces on triangles face_tri (F,), sides sigma (F,)."""
+    h2 = ctx.rho * ctx.rho - mesh.rt2[face_tri]
+    if mesh.planar:
+        # every point is in the triangle's plane: a centre moved into it by h stays rho from them
+        # to second order (h^2 / rho), and top and bottom faces of a circle of radius rho then
+        # share it, as they should, instead of splitting by the rounding of sqrt(h^2 ~ 0)
+        h2 = np.where(h2 <= ctx.power_tol, 0.0, h2)
+    h = np.sqrt(np.maximum(h2, 0.0))
+    return mesh.o[face_tri] + (sigma * h)[:, None] * mesh.m[face_tri]
 
-    Seen from c, the face is the cone over these points: the facets of hull(points + {c}) that do
-    not touch c, outward = away from c. Coplanar (hence cocircular) points: their polygon, fanned;
-    when c lies in its plane (within the tolerance; the ball is then the face on both sides, as for
-    3 points at rt = rho) both orientations, with c moved into the plane.
-    """
-    u = ctx.p[members] - c
-    mean = u.mean(axis=0)
-    d = u - mean
-    _, _, vt = np.linalg.svd(d, full_matrices=False)
-    normal = np.array([vt[0, 1] * vt[1, 2] - vt[0, 2] * vt[1, 1],  # vt[0] x vt[1]: vt may be
-                       vt[0, 2] * vt[1, 0] - vt[0, 0] * vt[1, 2],  # left-handed
-                       vt[0, 0] * vt[1, 1] - vt[0, 1] * vt[1, 0]])
-    off = d @ normal
-    if off.max() - off.min() <= FLAT_TOL * ctx.scale:
-        # cocircular points are in convex position: their angle about the centroid orders them
-        poly = members[np.argsort(np.arctan2(d @ vt[1], d @ vt[0]))]  # counter-clockwise about normal
-        fan = np.stack([np.repeat(poly[0], len(poly) - 2), poly[1:-1], poly[2:]], axis=1)
-        height = float(mean @ normal)  # signed distance of the polygon's plane from c
-        if height * height <= ctx.power_tol:
-            return np.concatenate([fan, fan[:, [0, 2, 1]]]), c + height * normal
-        return (fan if height > 0 else fan[:, [0, 2, 1]]), c
-    q = np.vstack([u, np.zeros((1, 3))])
-    hull = ConvexHull(q)
-    outer = ~(hull.simplices == len(u)).any(axis=1)
-    simp, normals = hull.simplices[outer], hull.equations[outer, :3]
-    w = np.cross(q[simp[:, 1]] - q[simp[:, 0]], q[simp[:, 2]] - q[simp[:, 0]])
-    flip = np.einsum("ij,ij->i", w, normals) < 0
-    simp = np.where(flip[:, None], simp[:, [0, 2, 1]], simp)
-    return members[simp], c
+
+def _face_arrays(ctx: _Context, mesh: _Mesh, face_tri: np.ndarray, sigma: np.ndarray):
+    """Faces (F, 3), counter-clockwise from outside, and their big-sphere centres (F, 3)."""
+    t = mesh.tri[face_tri]
+    # the outward normal points away from the centre: -sigma m, so sigma = +1 reverses (a, b, c)
+    faces = np.where((sigma > 0)[:, None], t[:, [0, 2, 1]], t)
+    return faces, _centres(ctx, mesh, face_tri, sigma)
 
 
 def _verify_faces(ctx: _Context, faces: np.ndarray, centres: np.ndarray) -> None:
     """Check the definition: every point within rho (+ tolerance) of every face centre."""
-    x = ctx.p
-    d2 = (x * x).sum(axis=1)[:, None] - 2.0 * x @ centres.T + (centres * centres).sum(axis=1)[None, :]
-    far = np.sqrt(np.maximum(d2.max(axis=0), 0.0))
+    far = _farthest(ctx.p, centres)
     worst = int(np.argmax(far - ctx.rho))
     if far[worst] > ctx.rho + ctx.verify_tol:
         raise RuntimeError(f"face {faces[worst]} has a point at {far[worst]!r} from its centre, "
@@ -570,63 +738,138 @@ def _verify_faces(ctx: _Context, faces: np.ndarray, centres: np.ndarray) -> None
 
 # ------------------------------------------------------------------------------------------ edges
 
-def _pair_faces(ctx: _Context, faces: np.ndarray, centres: np.ndarray):
-    """Edges (E, 2), their faces (E, 2) and real flags (E,) from the faces' half-edges.
+def _half_edges(faces: np.ndarray):
+    """Tails (3F,), heads (3F,) and faces (3F,) of the faces' half-edges, face by face."""
+    return faces.ravel(), faces[:, [1, 2, 0]].ravel(), np.repeat(np.arange(len(faces)), 3)
 
-    Half-edge a -> b of face f1 pairs with a half-edge b -> a of the face f2 whose centre comes first
-    when f1's centre turns about the axis from b to a (the way it moves as the sphere rolls over
-    (a, b) onto the next face); a centre equal to f1's comes first of all (zero-width torus).
+
+def _pair_solid(mesh: _Mesh, faces: np.ndarray, face_tri: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """For each half-edge a -> b (3F,), the face holding b -> a across the torus of (a, b).
+
+    The face on triangle t with its centre on side sigma bounds the run of out tetrahedra around
+    (a, b) that starts at the tetrahedron on side -sigma of t; walking around (a, b) through that
+    run (infinity joins the two boundary triangles through (a, b)), the first triangle with a face
+    centred away from the current tetrahedron holds the other end of the torus.
     """
-    n_faces = len(faces)
-    a = faces.ravel()
-    b = faces[:, [1, 2, 0]].ravel()
-    owner = np.repeat(np.arange(n_faces), 3)
-    n_pts = int(faces.max()) + 1
-    key = a * n_pts + b
-    order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
-    rev = b * n_pts + a
-    first = np.searchsorted(sorted_key, rev, side="left")
-    last = np.searchsorted(sorted_key, rev, side="right")
-    count = last - first
-    if (count == 0).any():
-        h = int(np.nonzero(count == 0)[0][0])
+    a, b, owner = _half_edges(faces)
+    n_tri = len(mesh.tri)
+    tface = np.full((n_tri, 2), -1, dtype=np.int64)  # column 0: centre on +m side, 1: on -m side
+    tface[face_tri, (sigma < 0).astype(np.int64)] = np.arange(len(faces))
+    # boundary triangles through each hull edge: the two of them, keyed by the sorted pair
+    boundary = np.nonzero(mesh.tet[:, 1] < 0)[0]
+    n_pts = int(mesh.tri.max()) + 1
+    bt = mesh.tri[boundary]
+    bkey = np.concatenate([np.sort(bt[:, [0, 1]], axis=1), np.sort(bt[:, [1, 2]], axis=1),
+                           np.sort(bt[:, [2, 0]], axis=1)])
+    bkey = bkey[:, 0] * n_pts + bkey[:, 1]
+    btri = np.tile(boundary, 3)
+    order = np.argsort(bkey, kind="stable")
+    bkey, btri = bkey[order], btri[order]
+
+    t_prev = face_tri[owner].copy()
+    s = sigma[owner]
+    node = np.where(mesh.side_a[t_prev] == -s, mesh.tet[t_prev, 0], mesh.tet[t_prev, 1])
+    partner = np.full(len(a), -1, dtype=np.int64)
+    active = np.arange(len(a))
+    for _ in range(len(mesh.simp) + 2):
+        if len(active) == 0:
+            break
+        k, tp, u, v = node[active], t_prev[active], a[active], b[active]
+        at_inf = k < 0
+        t_next = np.empty(len(active), dtype=np.int64)
+        side_k = np.empty(len(active), dtype=np.int64)
+        # a tetrahedron: its other triangle through (u, v)
+        ki = k[~at_inf]
+        verts = mesh.simp[ki]
+        other = (verts != u[~at_inf, None]) & (verts != v[~at_inf, None])  # the two local j
+        j1 = np.argmax(other, axis=1)
+        j2 = 3 - np.argmax(other[:, ::-1], axis=1)
+        tj1 = mesh.tid[ki, j1]
+        j = np.where(tj1 == tp[~at_inf], j2, j1)
+        tn = mesh.tid[ki, j]
+        t_next[~at_inf] = tn
+        side_k[~at_inf] = np.where(mesh.tet[tn, 0] == ki, mesh.side_a[tn], -mesh.side_a[tn])
+        # infinity: the other boundary triangle through (u, v); infinity lies opposite its tetrahedron
+        if at_inf.any():
+            key = np.minimum(u[at_inf], v[at_inf]) * n_pts + np.maximum(u[at_inf], v[at_inf])
+            first = np.searchsorted(bkey, key)
+            t0, t1 = btri[first], btri[np.minimum(first + 1, len(btri) - 1)]
+            tn = np.where(t0 == tp[at_inf], t1, t0)
+            t_next[at_inf] = tn
+            side_k[at_inf] = -mesh.side_a[tn]
+        found = tface[t_next, (side_k > 0).astype(np.int64)]  # the face centred on side -side_k
+        done = found >= 0
+        partner[active[done]] = found[done]
+        go = ~done
+        step_from = np.where(at_inf, -1, k)
+        nxt = np.where(at_inf, mesh.tet[t_next, 0],
+                       np.where(mesh.tet[t_next, 0] == step_from, mesh.tet[t_next, 1], mesh.tet[t_next, 0]))
+        node[active[go]] = nxt[go]
+        t_prev[active[go]] = t_next[go]
+        active = active[go]
+    if len(active):
+        raise RuntimeError(f"the faces do not close: edge ({a[active[0]]}, {b[active[0]]}) of face "
+                           f"{owner[active[0]]} has no face on its other side")
+    return partner
+
+
+def _pair_planar(mesh: _Mesh, faces: np.ndarray, face_tri: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """For each half-edge (3F,), the face across it: the same side's face of the neighbouring
+    triangle if it has one (the circle of centres through the edge meets both triangles' axes on
+    that side), else the face on the other side of the same triangle (it meets only this axis)."""
+    a, b, owner = _half_edges(faces)
+    tface = np.full((len(mesh.tri), 2), -1, dtype=np.int64)
+    tface[face_tri, (sigma < 0).astype(np.int64)] = np.arange(len(faces))
+    t = face_tri[owner]
+    s = (sigma[owner] < 0).astype(np.int64)
+    verts = mesh.tri[t]
+    opposite = np.argmax((verts != a[:, None]) & (verts != b[:, None]), axis=1)
+    nbr = mesh.nb2[t, opposite]
+    across = np.where(nbr >= 0, tface[np.maximum(nbr, 0), s], -1)
+    return np.where(across >= 0, across, tface[t, 1 - s])
+
+
+def _edges(ctx: _Context, faces: np.ndarray, centres: np.ndarray, partner: np.ndarray):
+    """Edges (E, 2), their faces (E, 2) and real flags (E,) from the pairing of the half-edges."""
+    a, b, owner = _half_edges(faces)
+    # the partner's half-edge b -> a, and that it pairs back
+    pf = faces[partner]
+    back = np.nonzero((pf == b[:, None]) & (np.roll(pf, -1, axis=1) == a[:, None]))
+    if len(back[0]) != len(a):
+        h = int(np.setdiff1d(np.arange(len(a)), back[0])[0])
         raise RuntimeError(f"the faces do not close: edge ({a[h]}, {b[h]}) of face {owner[h]} "
                            f"has no face on its other side")
-    partner = np.where(count == 1, order[np.minimum(first, len(order) - 1)], -1)
-    for h in np.nonzero(count > 1)[0]:
-        cands = order[first[h]:last[h]]
-        mirror = (np.sort(faces[owner[cands]], axis=1) == np.sort(faces[owner[h]])).all(axis=1)
-        partner[h] = cands[_first_by_rotation(ctx, a[h], b[h], centres[owner[h]],
-                                              centres[owner[cands]], mirror)]
-    if not (partner[partner] == np.arange(len(partner))).all():
+    mate = np.empty(len(a), dtype=np.int64)
+    mate[back[0]] = 3 * partner[back[0]] + back[1]
+    if not (mate[mate] == np.arange(len(a))).all():
         raise RuntimeError("the faces do not pair up consistently across their edges")
     one = a < b
     edges = np.stack([a[one], b[one]], axis=1)
-    edge_faces = np.stack([owner[one], owner[partner[one]]], axis=1)
+    edge_faces = np.stack([owner[one], partner[one]], axis=1)
     gap = np.linalg.norm(centres[edge_faces[:, 0]] - centres[edge_faces[:, 1]], axis=1)
-    return edges, edge_faces, gap > ctx.centre_tol
+    return edges, edge_faces, _real_tori(edges, gap, ctx.centre_tol)
 
 
-def _first_by_rotation(ctx: _Context, a: int, b: int, c1: np.ndarray, cands: np.ndarray,
-                       mirror: np.ndarray) -> int:
-    """Index in cands (k, 3) of the centre met first turning c1 about the axis from b to a.
+def _real_tori(edges: np.ndarray, gap: np.ndarray, tol: float) -> np.ndarray:
+    """(E,) bool: the edges whose faces do not share a centre (gap (E,) > tol), and every edge of a
+    vertex that also has a real torus almost as thin (gap <= NEAR_SHARED tol).
 
-    A centre equal to c1 comes first (zero rotation); among those, the mirror image of the face
-    itself (mirror (k,) bool: same three points, the other side of a ball at rt = rho) comes last, as
-    it is the neighbour only across the rim of such a flat face.
+    A zero-width torus gives its vertices no cone: that is right at a corner of a cospherical
+    polygon, whose sides (clearly real tori) bound the corner's region, and wrong at a vertex among
+    faces that all nearly coincide (rounding splits their gaps on either side of tol), whose region
+    then has too few bounds.
     """
-    pa, pb = ctx.p[a], ctx.p[b]
-    e = (pa - pb) / np.linalg.norm(pa - pb)
-    mid = 0.5 * (pa + pb)
-    u1 = c1 - mid
-    u1 -= (u1 @ e) * e
-    u = cands - mid
-    u -= np.outer(u @ e, e)
-    angle = np.mod(np.arctan2(np.cross(u1, u) @ e, u @ u1), 2.0 * np.pi)
-    angle[np.linalg.norm(cands - c1, axis=1) <= ctx.centre_tol] = -1.0
-    angle[mirror] = np.where(angle[mirror] < 0.0, -0.5, angle[mirror])
-    return int(np.argmin(angle))
+    real = gap > tol
+    thin = real & (gap <= NEAR_SHARED * tol)
+    n = int(edges.max()) + 1 if len(edges) else 0
+    while True:
+        mixed = (np.bincount(edges[thin].ravel(), minlength=n) > 0) & \
+            (np.bincount(edges[~real].ravel(), minlength=n) > 0)
+        grow = ~real & (mixed[edges[:, 0]] | mixed[edges[:, 1]])
+        if not grow.any():
+            return real
+        real |= grow
+        thin |= grow
 
 
 # ---------------------------------------------------------------------------------------- spindle
@@ -639,10 +882,11 @@ def _check_spindle_holds(ctx: _Context, pair: np.ndarray) -> None:
     q = ctx.p - 0.5 * (pa + pb)
     t = q @ e
     radial = np.linalg.norm(q - np.outer(t, e), axis=1)
-    # inside every rho-ball through pa and pb: radial <= sqrt(rho^2 - t^2) - sqrt(rho^2 - half^2)
+    # inside every rho-ball through pa and pb: radial + a <= sqrt(rho^2 - t^2), a = sqrt(rho^2 - half^2),
+    # squared: where rho is half the pair's length, sqrt(rho^2 - t^2) is the root of rounding
     a = math.sqrt(max(ctx.rho ** 2 - half ** 2, 0.0))
-    slack = np.sqrt(np.maximum(ctx.rho ** 2 - t * t, 0.0)) - a - radial
-    if (np.abs(t) > half + ctx.verify_tol).any() or slack.min() < -ctx.verify_tol:
+    excess = ((radial + a) ** 2 + t * t - ctx.rho ** 2) / (2.0 * ctx.rho)
+    if (np.abs(t) > half + ctx.verify_tol).any() or excess.max() > ctx.verify_tol:
         raise RuntimeError("no face found, but the points do not fit the spindle of their two "
                            "farthest points")
 
