@@ -86,8 +86,12 @@ CENTRE_TOL = 1e-13
 # region
 NEAR_SHARED = 1e3
 MEB_TOL = 1e-9  # a candidate smallest enclosing ball may miss a point by this, relative to D (m/m)
-VERIFY_TOL = 1e-9  # final check |x - c_f| <= rho + VERIFY_TOL D + ROUNDING_TOL rho (m/m)
+VERIFY_TOL = 1e-9  # |x - c_f| <= rho + VERIFY_TOL D + ROUNDING_TOL rho + INPUT_ULPS ulp(x) (m/m)
 ROUNDING_TOL = 1e-14  # relative rounding of a distance to a centre rho away (50 eps) (m/m)
+# the input's own rounding, in units in the last place of its largest coordinate: far from the
+# origin it dominates, and a degenerate cloud amplifies it (rings on their enclosing sphere 3500
+# sizes off the origin: faces missed points by 3000 ulps)
+INPUT_ULPS = 1e4
 # |det| of a tetrahedron's unit edge vectors from one vertex: below this its own circumcentre is
 # ill-conditioned (1/this amplifies rounding) and qhull's hyperplane gives it instead
 WELL_SHAPED = 1e-6
@@ -127,7 +131,7 @@ def build_topology(points, r: float, R: float) -> STPTopology:
         pair = np.sort([np.argmin(p @ frame[0]), np.argmax(p @ frame[0])])  # the two ends
         _check_feasible(r, rho, 0.5 * float(np.linalg.norm(p[pair[0]] - p[pair[1]])), scale)
         return _spindle(unique[pair], source[pair], r, R)
-    ctx = _Context(p=p, rho=rho, scale=scale)
+    ctx = _Context(p=p, rho=rho, scale=scale, ulp=float(np.spacing(np.abs(unique).max())))
     mesh = _planar_triangulation(ctx, frame) if rank == 2 else _solid_triangulation(ctx)
     _check_feasible(r, rho, _enclosing_radius(ctx, mesh.candidates()), scale)
 
@@ -256,13 +260,14 @@ def _round_up(value: float, digits: int) -> str:
 # ---------------------------------------------------------------------------------- triangulation
 
 class _Context:
-    """The centred points (n, 3), rho and the cloud size D, with the tolerances derived from them."""
+    """The centred points (n, 3), rho, the cloud size D and the spacing ulp of the input's largest
+    coordinate, with the tolerances derived from them."""
 
-    def __init__(self, p: np.ndarray, rho: float, scale: float):
+    def __init__(self, p: np.ndarray, rho: float, scale: float, ulp: float = 0.0):
         self.p, self.rho, self.scale = p, rho, scale
         self.power_tol = POWER_TOL * scale * (scale + rho)
         self.centre_tol = CENTRE_TOL * (scale + rho)
-        self.verify_tol = VERIFY_TOL * scale + ROUNDING_TOL * rho
+        self.verify_tol = VERIFY_TOL * scale + ROUNDING_TOL * rho + INPUT_ULPS * ulp
 
 
 class _Mesh:
@@ -362,9 +367,8 @@ def _furthest_delaunay(q: np.ndarray, joggle: bool = False):
     Delaunay of q (n, d), and whether qhull joggled it.
 
     scipy's, joggled ('QJ') when asked, when qhull rejects the input (cospherical, in 2-D
-    cocircular, input makes it stop with QH6019/QH6154) or when it drops a point (q are hull
-    vertices: each must be in a simplex); a joggled triangulation is a valid one of points moved by
-    rounding amounts. The lifted centre of a simplex is the centre
+    cocircular, input makes it stop with QH6019/QH6154) or when it drops a corner of the hull
+    (_keeps_corners); a joggled triangulation is a valid one of points moved by rounding amounts. The lifted centre of a simplex is the centre
     of the sphere of its hyperplane in qhull's lifting (inf where that is vertical): the tetrahedra
     qhull made from one merged facet share it. d + 1 points are their own simplex (qhull needs d + 2
     to lift them); their centre is left nan.
@@ -376,9 +380,7 @@ def _furthest_delaunay(q: np.ndarray, joggle: bool = False):
     if not joggle:
         try:
             tri = Delaunay(q, furthest_site=True)
-            # every point of q is a hull vertex, hence a vertex of the triangulation; qhull can leave
-            # some out without listing them as coplanar (all of q on one sphere: one merged facet)
-            if len(tri.coplanar) or len(np.unique(tri.simplices)) < n:
+            if len(tri.coplanar) or not _keeps_corners(q, tri.simplices):
                 tri = None
         except QhullError:
             tri = None
@@ -390,6 +392,24 @@ def _furthest_delaunay(q: np.ndarray, joggle: bool = False):
         lifted = -eq[:, :d] / (2.0 * eq[:, d:d + 1] * tri.paraboloid_scale)
     lifted[~np.isfinite(lifted).all(axis=1)] = np.inf
     return tri.simplices, tri.neighbors, lifted, joggle
+
+
+def _keeps_corners(q: np.ndarray, simplices: np.ndarray) -> bool:
+    """Whether the points of q (n, d) that the simplices leave out lie on the convex hull of those
+    they use (within FLAT_TOL of its size): a point inside a flat facet of the hull may go, a corner
+    may not. qhull can leave corners out without listing them as coplanar (points on one sphere:
+    it kept 5 of 904, one merged facet)."""
+    used = np.unique(simplices)
+    if len(used) == len(q):
+        return True
+    out = np.setdiff1d(np.arange(len(q)), used)
+    try:
+        eq = ConvexHull(q[used]).equations
+    except QhullError:
+        return False
+    d = q.shape[1]
+    size = float(np.linalg.norm(np.ptp(q, axis=0)))
+    return bool((q[out] @ eq[:, :d].T + eq[:, d]).max() <= FLAT_TOL * size)
 
 
 _OTHERS = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])  # the triangle opposite vertex j
@@ -427,10 +447,14 @@ def _solid_triangulation(ctx: _Context, joggle: bool = False) -> _Mesh:
     tid[tet_b[inner], j_b[inner]] = np.nonzero(inner)[0]
 
     orient, conflict = _orientations(p, simp, tet_a, j_a, tet_b, j_b, tri)
-    if conflict and not joggled:  # qhull's merged facets left overlapping tetrahedra: joggle instead
+    # qhull's merged facets can leave tetrahedra overlapping, or leave some out (the vertical facets
+    # of coplanar points in its lifting: flat ones pinch the triangulation's boundary at an edge
+    # between four boundary triangles, others dent it): joggled points are in general position
+    broken = conflict or not _boundary_is_manifold(tri[~inner]) or not _fills_hull(p, hull, simp)
+    if broken and not joggled:
         return _solid_triangulation(ctx, joggle=True)
-    if conflict:
-        raise RuntimeError("the farthest-point triangulation is not consistently oriented")
+    if broken:
+        raise RuntimeError("the farthest-point triangulation does not fill the convex hull once")
 
     mesh = _Mesh(hull, tri, np.stack([simp[tet_a, j_a],
                                       np.where(inner, simp[np.maximum(tet_b, 0), np.maximum(j_b, 0)], -1)],
@@ -441,7 +465,28 @@ def _solid_triangulation(ctx: _Context, joggle: bool = False) -> _Mesh:
     mesh.tet = np.stack([tet_a, tet_b], axis=1)
     mesh.side_a = _APEX_SIDE[j_a] * orient[tet_a]
     mesh.centre, mesh.excess, mesh.shape = _circumcentres(ctx, simp, lifted)
+    # a tetrahedron's circumradius is at least each of its triangles': one with a triangle wider than
+    # rho is out, whatever its centre says (qhull's, for a flat tetrahedron on three collinear
+    # points, comes from joggled points; the triangle read from the true ones has no circle)
+    wide = (mesh.rt2[tid] > ctx.rho * ctx.rho + ctx.power_tol).any(axis=1)
+    mesh.excess[wide] = np.inf
     return mesh
+
+
+def _fills_hull(p: np.ndarray, hull: np.ndarray, simp: np.ndarray) -> bool:
+    """Whether the tetrahedra's volumes add up to the convex hull's (within rounding)."""
+    e = p[simp[:, 1:]] - p[simp[:, :1]]
+    total = float(np.abs(np.linalg.det(e)).sum()) / 6.0
+    whole = ConvexHull(p[hull]).volume
+    scale = float(np.linalg.norm(np.ptp(p[hull], axis=0)))
+    return abs(total - whole) <= 1e-9 * whole + 64 * np.finfo(float).eps * len(simp) * scale ** 3
+
+
+def _boundary_is_manifold(boundary: np.ndarray) -> bool:
+    """Whether every edge of the boundary triangles (b, 3) lies in exactly two of them."""
+    pairs = np.sort(np.concatenate([boundary[:, [0, 1]], boundary[:, [1, 2]], boundary[:, [2, 0]]]), axis=1)
+    _, count = np.unique(pairs, axis=0, return_counts=True)
+    return bool((count == 2).all())
 
 
 def _orientations(p, simp, tet_a, j_a, tet_b, j_b, tri) -> tuple[np.ndarray, bool]:
