@@ -68,7 +68,9 @@ N_ORACLE_DIRECTIONS = 600
 OWNER_MAX_PATCHES = 20_000  # owner counts cost directions x patches
 N_RANDOM_DIRECTIONS = 1000
 N_OWNER_DIRECTIONS = 300
-WIDE_RHO = 1e7  # R - r beyond this many sizes: face regions below the rounding of their planes
+# R - r beyond this many sizes: the faces' regions, ~ size / rho across, approach the rounding of
+# their planes (~ eps rho / size); a 1e-8 thin sliver at 7e6 sizes had two faces own its normal
+WIDE_RHO = 1e6
 AT_MINIMUM = 1e-9  # R - r within this of the enclosing radius (relative): Q is a point up to rounding
 FAMILIES = ("random", "duplicates", "coplanar", "cospherical", "cocircular", "sliver", "needle", "mesh")
 
@@ -446,7 +448,7 @@ def _representation_limits(topo) -> str:
     if rho > WIDE_RHO * size:
         # a face's region is ~ size / rho across; its planes, from (x_a - c) x (x_b - c) with c rho
         # away, are rounded by ~ eps rho / size
-        out.append(f"R - r {rho / size:.2g} times its size (face regions narrower than their planes' rounding)")
+        out.append(f"R - r {rho / size:.2g} times its size (face regions near their planes' rounding)")
     return "; ".join(out)
 
 

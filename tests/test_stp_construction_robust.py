@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.fuzz_construction import check_construction, construction_cases
+from harness.fuzz_construction import case, check_construction, construction_cases
 from spq.shapes.polyhedron import Polyhedron
 from spq.stp.construction import build_topology, enclosing_radius
 
@@ -135,6 +135,28 @@ def test_cocircular_rings_far_from_the_origin():
 
 
 # ------------------------------------------------------------------------------ fuzz family
+
+@pytest.mark.parametrize("seed, index, what", [
+    (1, 141, "box corners just above their circumradius: thin tori marked zero-width"),
+    (2, 11, "rings 7000 sizes off the origin at their enclosing radius: ties flipped"),
+    (2, 188, "flat tetrahedra folded by rounding: orientations from the neighbours"),
+    (2, 260, "a sphere at its enclosing radius: a face on the wrong side of its triangle"),
+    (3, 80, "near-duplicates 1.6e-9 apart: a sliver's centre solved from its far corner"),
+    (5, 357, "points on a sphere at their enclosing radius: zero-width and real tori mixed at a vertex"),
+    (6, 169, "a cloud 1.4e-11 thin: flat tetrahedra everywhere"),
+    (8, 207, "four points, the spindle of a diametral pair: sqrt of rounding in its check"),
+    (10, 91, "rings: qhull left flat tetrahedra out, four boundary triangles at one edge"),
+    (11, 217, "a box grid at 5e8 sizes: collinear boundary triangles, a face point left out"),
+    (11, 267, "rings 3500 sizes off the origin at their enclosing radius: misses of 3000 ulps"),
+    (11, 416, "qhull left a solid tetrahedron out: a dent in the triangulation"),
+])
+def test_fuzz_cases_that_failed_now_build(seed, index, what):
+    # replayed from python -m harness.fuzz_construction --seed S (case index I): each failed the
+    # construction (before this fix, or on the way to it)
+    c = case(seed, index)
+    verdict, detail = check_construction(c["points"], c["r"], c["R"])
+    assert verdict != "failed" and not detail.startswith("construction:"), (what, detail)
+
 
 def test_construction_family_never_fails_and_its_volumes_cover_their_clouds():
     # 150 seeded clouds from every family of harness.fuzz_construction; the construction must build
