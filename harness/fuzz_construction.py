@@ -54,6 +54,8 @@ import time
 from collections import Counter
 
 import numpy as np
+
+from harness.fuzz.families import _count, _log_uniform
 from scipy.spatial import ConvexHull, QhullError
 from scipy.spatial.transform import Rotation
 
@@ -76,15 +78,6 @@ FAMILIES = ("random", "duplicates", "coplanar", "cospherical", "cocircular", "sl
 
 
 # ------------------------------------------------------------------------------------------ draws
-
-def _log_uniform(rng, lo: float, hi: float) -> float:
-    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
-
-
-def _count(rng, lo: int = 4, hi: int = 10_000) -> int:
-    """Log-uniform point counts: as many small clouds (where the degeneracies live) as big ones."""
-    return int(round(_log_uniform(rng, lo, hi)))
-
 
 def _unit_rows(rng, n: int) -> np.ndarray:
     v = rng.normal(size=(n, 3))
