@@ -13,6 +13,10 @@ A check run measures, with every engine it is given and at fixed seeds:
   oracle (:mod:`harness.depth_oracle`): largest error, failures, certified bounds missing it;
 - stability (every engine): wrong and failed verdicts on the stability and penetration families
   (:mod:`harness.stability`, one pose per case);
+- fuzz (spq, and coal, mujoco and bullet where they run): a small fuzz campaign (:mod:`harness.fuzz`),
+  ``fuzz_cases`` cases of every family of :mod:`harness.fuzz.families` at ``fuzz_poses`` pose pairs
+  each, spq queried unsigned and signed: per family and mode, spq's wrong, failed and disputed
+  queries, and the peers' wrong, failed and disputed ones as the campaign judges them;
 - speed: each engine's queries per second divided by the peer's (coal by default), timed in
   interleaved rounds on the same poses, so that a slow spell of a shared machine falls on all alike.
   Ratios only, never absolute times.
@@ -22,6 +26,10 @@ baseline run's metric of the same key (:func:`compare`):
 
 - kind "count" (wrong, failed, sign errors, bounds missing the reference): more than the baseline
   is a regression;
+- kind "zero" (spq's wrong answers in the fuzz campaign): more than 0 is a regression, whatever the
+  baseline says (a baseline cannot accept a wrong answer);
+- kind "advisory" (the peers' counts in the fuzz campaign): more than the baseline is reported
+  ("more (advisory)"), never failed;
 - kind "error" (largest errors, m): above max(2 x baseline, the engine's own tolerance) is a
   regression, and so is a value that is no longer finite;
 - kind "ratio" (speed): a regression when below baseline x (1 - threshold), where the threshold is
@@ -48,13 +56,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-SECTIONS = ("accuracy", "oracle", "stability", "speed")
+SECTIONS = ("accuracy", "oracle", "stability", "fuzz", "speed")
 FORMAT = "spq-check/1"
 NOISE_FACTOR = 4.0
 SPEED_FLOOR = 0.3  # default least threshold: a ratio more than 30% below its baseline
 SPEED_CAP = 0.6  # the threshold never exceeds this: a 3x slowdown (-67%) is always a regression
 REGRESSION, OK, BETTER, NEW, MISSING, ADVISORY, INFO = ("regression", "ok", "better", "new", "missing",
                                                         "slower (advisory)", "info")
+MORE = "more (advisory)"  # a peer's fuzz count above its baseline: reported, never failed
+JUDGED_WHEN_MISSING = ("count", "zero", "error", "ratio")  # kinds whose metric may not silently disappear
 
 
 @dataclass
@@ -67,6 +77,11 @@ class CheckConfig:
     speed_poses: int = 2000
     speed_rounds: int = 11
     peer: str = "coal"
+    fuzz_families: list | None = None  # None: every family of harness.fuzz.families
+    fuzz_cases: int = 4  # fuzz cases per family: the campaign's cases 0 .. fuzz_cases x families - 1
+    fuzz_poses: int = 500  # pose pairs per fuzz case, each queried unsigned and signed
+    fuzz_sample: float = 2e-4  # share of spq's fuzz queries referenced whatever the cheap checks say
+    fuzz_plant: str | None = None  # a planted bug (harness.fuzz.plant) judged instead of spq: the tests' mutant
     sections: tuple = SECTIONS
 
 
@@ -76,7 +91,7 @@ class Metric:
     check: str  # section/group, e.g. "accuracy/close-1e-3": one JUnit test case per engine and check
     metric: str
     value: float
-    kind: str  # "count", "error", "ratio" or "info"
+    kind: str  # "count", "zero", "advisory", "error", "ratio" or "info"
     tolerance: float | None = None  # the engine's own tolerance (kind "error")
     noise: float | None = None  # relative spread of the repeats (kind "ratio")
 
@@ -154,6 +169,51 @@ def stability_metrics(table: pd.DataFrame) -> list[Metric]:
             out.append(Metric(engine, check, "depth_wrong", int((g.depth_verdict == "wrong").sum()), "count"))
             out.append(Metric(engine, check, "depth_failed", int((g.depth_verdict == "failed").sum()), "count"))
     return out
+
+
+def fuzz_metrics(table: pd.DataFrame) -> list[Metric]:
+    """Metrics from a fuzz campaign's table (harness.fuzz.campaign.table's rows): per engine, family and
+    mode, spq's wrong answers (none allowed), failures (no more than the baseline's) and disputed
+    queries (recorded); the peers' wrong, failed (advisory) and disputed (recorded)."""
+    out = []
+    for r in table.itertuples():
+        check = f"fuzz/{r.family}/{r.mode}"
+        spq_ = r.engine == "spq"
+        out.append(Metric(r.engine, check, "wrong", int(r.wrong), "zero" if spq_ else "advisory"))
+        out.append(Metric(r.engine, check, "failed", int(r.failed), "count" if spq_ else "advisory"))
+        out.append(Metric(r.engine, check, "disputed", int(r.disputed), "info"))
+    return out
+
+
+def fuzz_campaign(config: CheckConfig, engines: dict, progress: bool = False):
+    """The check's fuzz campaign, on this process: cases 0 .. fuzz_cases x families - 1 of the campaign
+    at config.seed (those ``spq fuzz --seed S --poses P --queries 2 x P x cases`` runs first), judged by
+    harness.fuzz.campaign.run_task with the peers among ``engines``. Returns the campaign's State."""
+    from dataclasses import asdict
+
+    from tqdm import tqdm
+
+    from harness.fuzz import campaign as cp
+
+    peers = [p for p in cp.DEFAULT_PEERS if p in engines]
+    cc = cp.CampaignConfig(seed=config.seed, families=config.fuzz_families, poses=config.fuzz_poses,
+                           sample=config.fuzz_sample, peers=peers, plant=config.fuzz_plant)
+    families = cc.family_names()
+    state = cp.State(config=asdict(cc))
+    with tqdm(total=config.fuzz_cases, desc="check fuzz", unit="round", disable=not progress) as bar:
+        for k in range(config.fuzz_cases):  # one task per round of the families
+            cases = list(range(k * len(families), (k + 1) * len(families)))
+            state.merge(cp.run_task({"config": state.config, "peers": peers, "cases": cases}))
+            state.next_case, state.rounds = cases[-1] + 1, state.rounds + 1
+            bar.update(1)
+    return state
+
+
+def fuzz_section(config: CheckConfig, engines: dict, progress: bool = False) -> list[Metric]:
+    """Fuzz metrics (:func:`fuzz_metrics`) of the check's campaign (:func:`fuzz_campaign`)."""
+    from harness.fuzz.campaign import table
+
+    return fuzz_metrics(table(fuzz_campaign(config, engines, progress)))
 
 
 def speed_jobs(engines: dict, shapes: dict, poses_a: np.ndarray, poses_b: np.ndarray) -> tuple[dict, list]:
@@ -316,6 +376,8 @@ def speed_threshold(now: Metric, base: Metric, floor: float = SPEED_FLOOR) -> fl
 
 def judge(now: Metric, base: Metric | None, speed: str = "strict", floor: float = SPEED_FLOOR) -> tuple[str, str]:
     """(verdict, rule) of one metric against its baseline."""
+    if now.kind == "zero" and now.value > 0:
+        return REGRESSION, "must be 0, whatever the baseline"
     if base is None:
         return NEW, "not in the baseline"
     if now.kind == "info":
@@ -324,6 +386,12 @@ def judge(now: Metric, base: Metric | None, speed: str = "strict", floor: float 
     if now.kind == "count":
         if v > b:
             return REGRESSION, f"count above the baseline's {b:g}"
+        return (BETTER if v < b else OK), f"count <= {b:g}"
+    if now.kind == "zero":
+        return (BETTER if b > 0 else OK), "0"
+    if now.kind == "advisory":
+        if v > b:
+            return MORE, f"count above the baseline's {b:g} (advisory)"
         return (BETTER if v < b else OK), f"count <= {b:g}"
     if now.kind == "error":
         allowed = max(2.0 * b, now.tolerance or 0.0) if math.isfinite(b) else math.inf
@@ -345,7 +413,7 @@ def compare(now: list[Metric], base: list[Metric], ran: set[str], speed: str = "
             floor: float = SPEED_FLOOR, sections=SECTIONS) -> pd.DataFrame:
     """The diff table: one row per metric key in either run (engine, check, metric, baseline, now,
     verdict, rule). A baseline metric missing now is a regression if its engine and its section
-    ran (a check that silently disappeared), else 'missing' (not asked for)."""
+    ran (a check that silently disappeared) and it is judged (JUDGED_WHEN_MISSING), else 'missing'."""
     bmap = {m.key: m for m in base}
     rows = []
     for m in now:
@@ -356,7 +424,7 @@ def compare(now: list[Metric], base: list[Metric], ran: set[str], speed: str = "
     for b in base:
         if b.key not in seen:
             asked = b.engine in ran and b.check.split("/")[0] in sections
-            verdict = REGRESSION if asked and b.kind != "info" else MISSING
+            verdict = REGRESSION if asked and b.kind in JUDGED_WHEN_MISSING else MISSING
             rows.append((b.engine, b.check, b.metric, b.kind, b.value, math.nan, verdict,
                          "in the baseline, not measured now"))
     return pd.DataFrame(rows, columns=["engine", "check", "metric", "kind", "baseline", "now", "verdict", "rule"])
@@ -433,7 +501,7 @@ def summary_lines(metrics: list[Metric], diff: pd.DataFrame | None) -> list[str]
     lines = []
     df = pd.DataFrame([asdict(m) for m in metrics])
     for engine, g in df.groupby("engine", sort=False):
-        counts = g[g.kind == "count"]
+        counts = g[g.kind.isin(["count", "zero"])]
         errs = g[(g.kind == "error") & g.check.str.startswith("accuracy")]
         ratio = g[(g.kind == "ratio") & g.metric.str.startswith("PCH-PCH per-call")]
         parts = [f"{engine:14s}", f"checks {g.check.nunique():3d}",
@@ -442,6 +510,9 @@ def summary_lines(metrics: list[Metric], diff: pd.DataFrame | None) -> list[str]
             parts.append(f"max PCH error {errs.value.max():.2g} m")
         if len(ratio):
             parts.append(f"speed {ratio.value.iloc[0]:.2f}x peer")
+        advisory = g[g.kind == "advisory"]
+        if len(advisory):
+            parts.append(f"fuzz wrong/failed {int(advisory.value.sum())} (advisory)")
         lines.append("  ".join(parts))
     if diff is not None:
         n = diff.verdict.value_counts()
@@ -466,7 +537,7 @@ def history_chart(table: pd.DataFrame, path) -> Path:
         y = g.groupby("run").value.max().reindex(runs)
         ax1.semilogy(runs, np.maximum(y.to_numpy(dtype=float), 1e-18), marker="o", label=engine)
     ax1.set_title("largest PCH-PCH error (m)")
-    counts = table[table.kind == "count"]
+    counts = table[table.kind.isin(["count", "zero"])]
     for engine, g in counts.groupby("engine", sort=False):
         y = g.groupby("run").value.sum().reindex(runs)
         ax2.plot(runs, y.to_numpy(dtype=float), marker="o", label=engine)

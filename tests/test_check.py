@@ -69,6 +69,18 @@ def test_compare_missing_and_new_metrics():
     assert set(other.verdict) == {ck.MISSING, ck.NEW}
 
 
+def test_fuzz_rules_no_wrong_answer_ever_and_peers_advisory():
+    wrong = dict(kind="zero", check="fuzz/hull-random/signed", metric="wrong")
+    assert ck.judge(M(1, **wrong), M(1, **wrong))[0] == ck.REGRESSION  # a baseline cannot accept it
+    assert ck.judge(M(1, **wrong), None)[0] == ck.REGRESSION  # nor can its absence
+    assert ck.judge(M(0, **wrong), M(0, **wrong))[0] == ck.OK
+    peer = dict(kind="advisory", engine="coal", check="fuzz/hull-random/signed", metric="failed")
+    assert ck.judge(M(5, **peer), M(2, **peer))[0] == ck.MORE
+    diff = ck.compare([], [M(0, **wrong), M(2, **peer)], ran={"spq", "coal"})
+    verdict = {r.engine: r.verdict for r in diff.itertuples()}
+    assert verdict == {"spq": ck.REGRESSION, "coal": ck.MISSING}  # a peer's count may go; spq's may not
+
+
 def test_junit_parses_with_a_junit_library(tmp_path):
     junitparser = pytest.importorskip("junitparser")
     now = [M(0), M(2, metric="wrong_status"), M(1.0, kind="ratio", check="speed", metric="x ratio_to_coal", noise=0.0),
@@ -179,6 +191,74 @@ def test_planted_slowdown_fails_and_advisory_passes(tmp_path, registry, capsys):
     assert "PCH-PCH per-call ratio_to_coal" in out and "regression" in out
     assert cli.main(slow + ["--speed", "advisory"]) == 0
     assert "slower (advisory)" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------------------------------------
+# the fuzz section: every family, a raised failure count and a planted wrong answer caught
+# ------------------------------------------------------------------------------------------
+FUZZ_SMALL = dict(sections=("fuzz",), fuzz_cases=1, fuzz_poses=200)  # 11 cases, 4400 spq queries
+
+
+def _fuzz_check(baseline=None, **settings):
+    """(exit code, results document, diff or None) of the fuzz section with spq and coal."""
+    from harness.suites import check
+
+    out = check.run(check.Config(settings=ck.CheckConfig(**{**FUZZ_SMALL, **settings}), engines=["spq", "coal"],
+                                 baseline=None if baseline is None else str(baseline)))
+    diff = out.raw.get("check_diff.csv")
+    return out.exit_code, json.loads(out.documents["check.json"]), diff
+
+
+@pytest.fixture(scope="module")
+def fuzz_baseline(tmp_path_factory):
+    _, doc, _ = _fuzz_check()
+    path = tmp_path_factory.mktemp("fuzz") / "check.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+@pytest.mark.engines
+def test_fuzz_metrics_cover_every_family_and_mode(fuzz_baseline):
+    from harness.fuzz.families import FAMILIES
+
+    metrics = ck.metrics_of(ck.load_results(fuzz_baseline))
+    spq = {(m.check, m.metric): m for m in metrics if m.engine == "spq"}
+    for family in FAMILIES:
+        for mode in ("unsigned", "signed"):
+            check = f"fuzz/{family}/{mode}"
+            assert spq[(check, "wrong")].kind == "zero" and spq[(check, "failed")].kind == "count"
+            assert spq[(check, "wrong")].value == 0, check  # the fixed seed's small campaign: no wrong answer
+    coal = [m for m in metrics if m.engine == "coal"]
+    assert {m.check.split("/")[1] for m in coal} >= {f for f in FAMILIES if f.startswith("hull-")}
+    assert {m.kind for m in coal} == {"advisory", "info"}
+
+
+@pytest.mark.engines
+def test_fuzz_rerun_equals_its_baseline_and_a_raised_failure_count_fails(fuzz_baseline, tmp_path):
+    # The oracle: the same seed gives the same counts, so against a baseline holding one failure
+    # fewer somewhere, that metric and only that one is a regression.
+    doc = ck.load_results(fuzz_baseline)
+    raised = next(m for m in doc["metrics"] if m["engine"] == "spq" and m["metric"] == "failed" and m["value"] > 0)
+    raised["value"] -= 1
+    lowered = tmp_path / "lowered.json"
+    lowered.write_text(json.dumps(doc))
+    code, _, diff = _fuzz_check(baseline=lowered)
+    assert code == 1
+    bad = diff[diff.verdict == ck.REGRESSION]
+    assert [(r.engine, r.check, r.metric) for r in bad.itertuples()] == [("spq", raised["check"], "failed")]
+    assert set(diff.verdict) <= {ck.OK, ck.INFO, ck.REGRESSION}  # every other count as in the baseline
+
+
+@pytest.mark.engines
+def test_planted_wrong_answer_fails_the_fuzz_section(fuzz_baseline, tmp_path):
+    # early-stop (harness.fuzz.plant) closes spq's bounds on a too-early distance; three cheap hull
+    # families find it in one case each (the STP families' oracle takes a minute on its suspects).
+    code, _, diff = _fuzz_check(baseline=fuzz_baseline, fuzz_plant="early-stop",
+                                fuzz_families=["hull-random", "hull-needle", "hull-far"])
+    assert code == 1
+    caught = diff[(diff.verdict == ck.REGRESSION) & (diff.metric == "wrong") & (diff.now > 0)]
+    assert len(caught) >= 2 and set(caught.engine) == {"spq"}
+    assert (caught.rule == "must be 0, whatever the baseline").all()
 
 
 # ------------------------------------------------------------------------------------------

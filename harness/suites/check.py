@@ -1,5 +1,6 @@
-"""The gate (``spq check``): the crosscheck, stability and depth-oracle suites at fixed seeds plus
-interleaved speed rounds, turned into metrics and judged against a baseline (rules in harness/check.py)."""
+"""The gate (``spq check``): the crosscheck, stability and depth-oracle suites and a small fuzz campaign
+at fixed seeds plus interleaved speed rounds, turned into metrics and judged against a baseline (rules in
+harness/check.py)."""
 
 from __future__ import annotations
 
@@ -46,6 +47,8 @@ def measure(settings: CheckConfig, engines: dict, progress: bool = False) -> lis
                                      stp_per_bucket=settings.oracle_per_bucket, seed=settings.seed,
                                      progress=progress))
         metrics += ck.oracle_metrics(out.frame("depth_oracle"))
+    if "fuzz" in settings.sections and any(ck.is_spq(e) for e in engines.values()):
+        metrics += ck.fuzz_section(settings, engines, progress)
     if "speed" in settings.sections:
         metrics += ck.speed_section(settings, engines, progress)
     return metrics
