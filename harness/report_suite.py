@@ -37,7 +37,8 @@ def check_config(quick: bool, seed: int, out: Path):
 
     history = str(out / "check_history.jsonl")
     if quick:  # smaller than the baseline's run: nothing to compare with
-        return check.Config(CheckConfig(seed=seed, per_bucket=26, oracle_per_bucket=1, speed_poses=500),
+        return check.Config(CheckConfig(seed=seed, per_bucket=26, oracle_per_bucket=1, speed_poses=500, fuzz_cases=1,
+                                        fuzz_poses=200),
                             history=history)
     return check.Config(CheckConfig(seed=seed), speed="advisory", history=history,
                         baseline=str(CHECK_BASELINE) if CHECK_BASELINE.exists() else None)
@@ -60,7 +61,7 @@ def check_section(out: Path) -> Section:
         acc = g[(g.kind == "error") & g.check.str.startswith("accuracy")]
         speed = g[(g.kind == "ratio") & g.metric.str.startswith("PCH-PCH per-call")]
         per.append({"engine": engine, "checks": g.check.nunique(),
-                    "wrong_failed_missed": int(g[g.kind == "count"].value.sum()),
+                    "wrong_failed_missed": int(g[g.kind.isin(["count", "zero"])].value.sum()),
                     "max_pch_error_m": acc.value.max() if len(acc) else float("nan"),
                     "per_call_speed_ratio": speed.value.iloc[0] if len(speed) else float("nan")})
     tables.append(("Per engine: counts of wrong, failed and missed-bound cases over all checks; the largest "
