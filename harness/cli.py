@@ -356,9 +356,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engines", nargs="+", help="engine names (default: spq fcl coal bullet bullet-margin)")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quick", action="store_true", help="one pose per case and fewer sweeps (seconds)")
+    p.add_argument("--generated-cases", type=int, default=10_000, metavar="N",
+                   help="cases generated from the fuzz families, each one shape pair at one pose (default 10000; "
+                        "0: none; with --quick: one per family)")
     p.add_argument("--quiet", action="store_true")
     _spread_arguments(p, "case")
-    p.set_defaults(func=_suite("stability"))
+    p.set_defaults(func=_suite("stability", generated=lambda a: a.generated_cases > 0))
 
     p = sub.add_parser("depth", help="spq's penetration depth against an independent oracle (STP-BV and CSE pairs)")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")

@@ -16,13 +16,20 @@ engine's raw signed distance is the reference's within its depth tolerance (ENGI
 the same side of the +-1e-9 m band; 'wrong' otherwise; 'failed'; 'no depth' for an engine that gives
 none. The penetration families (pen_*) exist for these: shallow 1e-12 .. 1e-3 m, containment, parallel
 faces, scales, far from the origin, degenerate GJK simplices and long faces against a tiny depth.
+
+Generated cases (draw_rows): beside these hand-built cases, cases drawn from the fuzz campaign's families
+(harness.fuzz.families), a case being one shape pair at one pose, seeded so that case k is a pure
+function of (seed, k). Polytope pairs are judged for every engine against the exact reference; pairs
+with an STP-BV, a superellipsoid, a sphere or a capsule for spq alone (the peers take meshes) against
+the fuzz campaign's independent oracle (harness.fuzz.oracle), with the same verdicts and tolerances,
+plus 'disputed' where only the oracle's lower bound stands against spq's answer.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -67,6 +74,12 @@ class StabilityConfig:
     links: tuple[str, str] = ("kuka_link_4", "panda_link_2")
     fcl_gap: bool = True  # the fcl_box_gap_3 family
     coal_sweep: bool = True  # coal's DualityGap + Relative sweep (when coal runs)
+    generated: bool = True  # the cases generated from the fuzz families (see generated_draw)
+    generated_cases: int = 10_000  # how many, in a full run (quick: QUICK_DRAWS x QUICK_POSES)
+
+    def __post_init__(self):
+        if not isinstance(self.generated_cases, int) or self.generated_cases < 0:
+            raise ValueError(f"generated_cases must be an integer >= 0, got {self.generated_cases!r}")
 
     @property
     def n(self) -> int:  # random poses per (case, parameter)
@@ -283,10 +296,11 @@ def tolerance_of(engine: str) -> tuple[float, float]:
 
 
 def verdict(engine: str, status: str, distance: float, ref_distance: float, ref_signed: float,
-            extent: float) -> tuple[str, float]:
-    """('ok' | 'wrong' | 'failed', allowed error in m)."""
+            extent: float, uncertainty: float = 0.0) -> tuple[str, float]:
+    """('ok' | 'wrong' | 'failed', allowed error in m). uncertainty (m): the reference's own, added to
+    the allowed error (0 for the exact reference; the depth oracle's spread otherwise)."""
     tol_abs, tol_rel = tolerance_of(engine)
-    allowed = tol_abs + tol_rel * max(ref_distance, 0.0) + 64 * EPS * extent
+    allowed = tol_abs + tol_rel * max(ref_distance, 0.0) + 64 * EPS * extent + uncertainty
     if status == "failed" or not math.isfinite(distance):
         return "failed", allowed
     band = max(AMBIGUOUS_BAND, tol_abs)
@@ -300,11 +314,11 @@ def verdict(engine: str, status: str, distance: float, ref_distance: float, ref_
 
 
 def depth_verdict(engine: str, gives_depth: bool, status: str, raw: float, ref_signed: float,
-                  extent: float) -> tuple[str, float]:
+                  extent: float, uncertainty: float = 0.0) -> tuple[str, float]:
     """('ok' | 'wrong' | 'failed' | 'no depth', allowed error in m) of a signed distance where the
-    reference overlaps or touches (see the module docstring)."""
+    reference overlaps or touches (see the module docstring); uncertainty as in :func:`verdict`."""
     tol_abs, tol_rel = ENGINE_DEPTH_TOL.get(engine, tolerance_of(engine))
-    allowed = tol_abs + tol_rel * abs(ref_signed) + 64 * EPS * extent
+    allowed = tol_abs + tol_rel * abs(ref_signed) + 64 * EPS * extent + uncertainty
     if not gives_depth:
         return "no depth", allowed
     if status == "failed" or not math.isfinite(raw):
@@ -411,6 +425,239 @@ def coal_sweep_cases(config: StabilityConfig, load_object) -> list[Case]:
                  _random_placements(la, lb, gap, per, rng)) for gap in (1e-6, 1e-4, 1e-2)]
 
 
+# --- generated cases: the fuzz campaign's families as stability cases ---------------------------------
+# A generated case is one shape pair at one pose, judged by every engine that takes the pair's shapes:
+# spq always (unsigned, and signed for the depth), the peers on polytope pairs only (they take meshes).
+# Case k is pose k % POSES_PER_DRAW of draw k // POSES_PER_DRAW; draw j is the fuzz family
+# GENERATED_SCHEDULE[j % len] drawn by harness.fuzz.families.draw_case with the generator
+# np.random.default_rng([seed, GENERATED_STREAM, j]): a case is a pure function of (seed, k).
+POSES_PER_DRAW = 10  # cases per drawn pair: its preparation (hulls, meshes sent to the peers' processes)
+# is shared by its poses, and 10,000 cases still hold 1,000 distinct pairs
+QUICK_DRAWS, QUICK_POSES = 11, 1  # the quick run: the first pose of draws 0 .. 10 (one per family)
+GENERATED_STREAM = 44  # draw j's seed is [seed, 44, j]: not the fuzz campaign's [seed, k], so the suite's
+# pairs are not the campaign's first cases (44: the issue that asked for them)
+# draws per round of the schedule. The hull families' poses get the exact reference (20 ms each on average);
+# a pair with an STP-BV or a superellipsoid needs the depth oracle (0.5 .. 1 s a pose) on every pose its
+# cheap bracket cannot settle, about half of them (the overlapping ones): those families get 1 draw to
+# the others' 12, about 100 cases each at full size, what the time budget allows.
+FAMILY_DRAWS = {"hull-random": 12, "hull-sliver": 12, "hull-needle": 12, "hull-coplanar": 12, "hull-duplicates": 12,
+                "hull-scale": 12, "hull-far": 12, "primitives": 12, "stp-min-R": 1, "stp-big-R": 1, "cse": 1}
+SLOW_FAMILIES = ("stp-min-R", "stp-big-R", "cse")  # judged by the depth oracle: handed out first
+
+
+def _schedule(draws: dict) -> tuple[str, ...]:
+    """One round of families: each once (so that the first len(draws) draws cover every family), then
+    their remaining draws interleaved."""
+    left = {f: n - 1 for f, n in draws.items()}
+    out = list(draws)
+    while any(left.values()):
+        for f in draws:
+            if left[f] > 0:
+                out.append(f)
+                left[f] -= 1
+    return tuple(out)
+
+
+GENERATED_SCHEDULE = _schedule(FAMILY_DRAWS)
+
+
+def generated_draw(seed: int, j: int):
+    """(family, spec A, spec B, poses_a (POSES_PER_DRAW, 4, 4), poses_b, regimes) of draw j."""
+    from harness.fuzz.families import draw_case
+
+    if j < 0:
+        raise ValueError(f"a draw index is >= 0, got {j}")
+    family = GENERATED_SCHEDULE[j % len(GENERATED_SCHEDULE)]
+    rng = np.random.default_rng([seed, GENERATED_STREAM, j])
+    return (family, *draw_case(family, rng, POSES_PER_DRAW))
+
+
+def generated_case(seed: int, k: int) -> dict:
+    """Generated case k: family, specs a and b (harness.fuzz.families), pose_a, pose_b (4x4), regime."""
+    if k < 0:
+        raise ValueError(f"a case index is >= 0, got {k}")
+    family, a, b, pa, pb, regimes = generated_draw(seed, k // POSES_PER_DRAW)
+    i = k % POSES_PER_DRAW
+    return {"family": family, "a": a, "b": b, "pose_a": pa[i], "pose_b": pb[i], "regime": str(regimes[i])}
+
+
+def generated_indices(config: "StabilityConfig") -> list[int]:
+    """The generated cases a run judges: 0 .. generated - 1, or in quick mode the first QUICK_POSES poses
+    of draws 0 .. QUICK_DRAWS - 1."""
+    if config.quick and config.generated:
+        return [j * POSES_PER_DRAW + i for j in range(QUICK_DRAWS) for i in range(QUICK_POSES)]
+    return list(range(config.generated_cases)) if config.generated else []
+
+
+def generated_tasks(config: "StabilityConfig") -> list[tuple[int, int, tuple]]:
+    """(seed, draw j, pose indices) per draw holding cases of the run: the unit of work."""
+    draws: dict[int, list] = {}
+    for k in generated_indices(config):
+        draws.setdefault(k // POSES_PER_DRAW, []).append(k % POSES_PER_DRAW)
+    return [(config.seed, j, tuple(p)) for j, p in draws.items()]
+
+
+def _spec_label(spec: dict) -> str:
+    """A shape spec in a few characters: its kind and, for point sets, their count."""
+    return f"{spec['kind']}({len(spec['points'])})" if "points" in spec else spec["kind"]
+
+
+def _verdicts(name: str, answer: dict, i: int, sd: float, extent: float, unc: float = 0.0) -> dict:
+    """The row fields of engine ``name``'s answer at pose i against the signed distance sd (m)."""
+    status, d, d_status, raw = answer["status"][i], answer["distance"][i], answer["depth_status"][i], answer["raw"][i]
+    v, allowed = verdict(name, status, d, max(sd, 0.0), sd, extent, unc)
+    err = d - max(sd, 0.0)
+    out = {"ref_distance": max(sd, 0.0), "ref_signed": sd, "ref_depth": max(-sd, 0.0), "distance": d,
+           "raw_distance": raw, "status": status, "error": err, "abs_error": abs(err),
+           "rel_error": abs(err) / sd if sd > AMBIGUOUS_BAND else float("nan"), "allowed_error": allowed,
+           "verdict": v, "depth_verdict": "", "depth_error": float("nan"), "depth_abs_error": float("nan"),
+           "allowed_depth_error": float("nan")}
+    if sd <= AMBIGUOUS_BAND:
+        dv, d_allowed = depth_verdict(name, answer["gives_depth"], d_status, raw, sd, extent, unc)
+        out.update(depth_verdict=dv, allowed_depth_error=d_allowed)
+        if dv != "no depth":
+            out.update(depth_error=raw - sd, depth_abs_error=abs(raw - sd))
+    return out
+
+
+def _unproven(fields: dict) -> bool:
+    """A 'wrong' that a lower bound of the signed distance (the depth oracle's value) does not prove:
+    the engine answers above it, where the oracle may have missed the minimum."""
+    return ((fields["verdict"] == "wrong" and fields["distance"] >= fields["ref_distance"])
+            or (fields["depth_verdict"] == "wrong" and fields["raw_distance"] >= fields["ref_signed"]))
+
+
+def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
+    """One row per judged pose and engine of draw j (poses ``picks``), as case_rows' rows plus source,
+    case_index, regime, reference ('exact', 'bracket', 'oracle', 'dense oracle') and ref_uncertainty.
+
+    Polytope pairs: every engine against the exact Minkowski reference. Other pairs (an STP-BV, a
+    superellipsoid, a sphere or a capsule) only spq, against the independent support functions of
+    harness.fuzz.oracle: first the bracket at spq's own normals (lower: the separation along the normal,
+    a lower bound of the signed distance for any normal; upper: the distance between the two support
+    points, apart), taken when spq's verdicts are the same at both of its ends; else the depth
+    oracle's value (a lower bound of the signed distance), raised to the separation along spq's normals;
+    a 'wrong' that this lower bound does not prove (spq above it) goes to a denser oracle run (up to
+    DENSE_PER_CASE per draw) and stays 'disputed' if that does not settle it."""
+    from harness.fuzz.judge import DENSE_PER_CASE, DENSE_POLISH, DENSE_STARTS, MODES, spq_outputs
+    from harness.fuzz.oracle import POLYTOPES, oracle_shape, peer_polyhedron, reference, separation_bounds, spq_shape
+    from spq.kernels.gjk import OUT_DISTANCE, OUT_NORMAL, OUT_STATUS, STATUS_NAMES
+
+    family, a, b, poses_a, poses_b, regimes = generated_draw(seed, j)
+    idx = np.asarray(picks, dtype=int)
+    poses_a, poses_b, regimes = poses_a[idx], poses_b[idx], regimes[idx]
+    n = len(idx)
+    oa, ob = oracle_shape(a), oracle_shape(b)
+    # the rounding slack's length (harness.fuzz.judge.slack): translations and the shapes' coordinates
+    extent = (np.abs(poses_a[:, :3, 3]).max(axis=1) + np.abs(poses_b[:, :3, 3]).max(axis=1)
+              + oa.magnitude + ob.magnitude)
+    polytopes = a["kind"] in POLYTOPES and b["kind"] in POLYTOPES
+    answers: dict[str, dict] = {}
+    normals = []
+    poly = (peer_polyhedron(a), peer_polyhedron(b)) if polytopes else None
+    if "spq" in engines:
+        # a hull spec's spq shape is the peers' Polyhedron: built once (qhull on up to 10,000 points)
+        shapes = [p_ if p_ is not None and spec["kind"] == "pch" else spq_shape(spec)
+                  for p_, spec in zip(poly or (None, None), (a, b))]
+        t0 = time.perf_counter()
+        out = spq_outputs(*shapes, poses_a, poses_b)
+        dt = (time.perf_counter() - t0) / (2 * n)
+        names = np.array(STATUS_NAMES)
+        unsigned, signed = out["unsigned"], out["signed"]
+        answers["spq"] = {"status": names[unsigned[:, OUT_STATUS].astype(int)], "distance": unsigned[:, OUT_DISTANCE],
+                          "depth_status": names[signed[:, OUT_STATUS].astype(int)], "raw": signed[:, OUT_DISTANCE],
+                          "gives_depth": True, "time_us": dt * 1e6, "message": ""}
+        normals = [out[m][:, OUT_NORMAL:OUT_NORMAL + 3] for m in MODES]
+    if polytopes:
+        for name, engine in engines.items():
+            if name == "spq":
+                continue
+            t0 = time.perf_counter()
+            try:
+                with engine.prepare(*poly) as prepared:
+                    r = prepared.query_many(poses_a, poses_b)
+                message = ""
+            except Exception as exc:  # the engine cannot load this pair: every pose failed
+                from harness.engines.base import BatchResult
+
+                r, message = BatchResult.empty(n), f"{type(exc).__name__}: {exc}"
+            raw = np.asarray(r.raw_distance, float)
+            answers[name] = {"status": np.asarray(r.status).astype(str), "distance": np.asarray(r.distance, float),
+                             "depth_status": np.asarray(r.status).astype(str), "raw": raw,
+                             "gives_depth": bool(getattr(engine, "gives_depth", False)),
+                             "time_us": (time.perf_counter() - t0) / n * 1e6, "message": message}
+
+    def lowers(i: int) -> list:
+        """Separation along each of spq's normals at pose i, and the support points' distance (apart)."""
+        got = []
+        for m in normals:
+            if np.isfinite(m[i]).all() and abs(np.linalg.norm(m[i]) - 1.0) < 1e-6:
+                lo, up = separation_bounds(oa, ob, poses_a[i:i + 1], poses_b[i:i + 1], m[i:i + 1])
+                got.append((float(lo[0]), float(up[0])))
+        return got
+
+    dense_left = DENSE_PER_CASE
+    rows = []
+    for p in range(n):
+        base = {"family": family, "case": f"{_spec_label(a)}|{_spec_label(b)}", "param": float("nan"),
+                "pose": int(idx[p]), "source": "generated", "case_index": j * POSES_PER_DRAW + int(idx[p]),
+                "regime": str(regimes[p])}
+        judged: dict[str, dict] = {}
+        if polytopes:
+            try:
+                sd, unc, kind = reference(oa, ob, poses_a[p], poses_b[p], poly).signed_distance, 0.0, "exact"
+            except Exception as exc:  # a reference failure skips the pose, never the run
+                rows += [{**base, "engine": name, "verdict": "no_reference", "depth_verdict": "", "message": str(exc)}
+                         for name in answers]
+                continue
+            judged = {name: _verdicts(name, ans, p, sd, extent[p]) for name, ans in answers.items()}
+        elif "spq" in answers:
+            ans, kind, unc = answers["spq"], "", 0.0
+            bounds = lowers(p)
+            if bounds:
+                lo = max(b_[0] for b_ in bounds)
+                up = min((b_[1] for b_ in bounds if np.isfinite(b_[1])), default=float("nan"))
+                up = max(up, lo)  # the two bounds cross by a rounding when spq's normal is the optimal one
+                if lo > 0 and np.isfinite(up):
+                    ends = [_verdicts("spq", ans, p, s_, extent[p]) for s_ in (lo, up, 0.5 * (lo + up))]
+                    # narrower than the allowed error, the same verdict at both ends is the verdict for any
+                    # signed distance between them (|answer - sd| is convex in sd)
+                    if (up - lo <= ends[0]["allowed_error"]
+                            and len({(e["verdict"], e["depth_verdict"]) for e in ends}) == 1):
+                        sd, unc, kind = 0.5 * (lo + up), 0.5 * (up - lo), "bracket"
+                        judged = {"spq": ends[2]}
+            if not judged:
+                r = reference(oa, ob, poses_a[p], poses_b[p])
+                sd, unc, kind = max([r.signed_distance, *(b_[0] for b_ in bounds)]), r.uncertainty, "oracle"
+                fields = _verdicts("spq", ans, p, sd, extent[p], unc)
+                if _unproven(fields) and dense_left > 0:
+                    from harness.depth_oracle import signed_distance
+
+                    dense_left -= 1
+                    rd = signed_distance(oa.core, poses_a[p], ob.core, poses_b[p], starts=DENSE_STARTS,
+                                         polish=DENSE_POLISH)
+                    sd = max(sd, float(rd.signed_distance) - oa.radius - ob.radius)
+                    unc, kind = max(unc, float(rd.spread)), "dense oracle"
+                    fields = _verdicts("spq", ans, p, sd, extent[p], unc)
+                if _unproven(fields):  # never counted ok, never wrong without proof
+                    for key in ("verdict", "depth_verdict"):
+                        if fields[key] == "wrong":
+                            fields[key] = "disputed"
+                judged = {"spq": fields}
+        for name, fields in judged.items():
+            ans = answers[name]
+            rows.append({**base, "engine": name, **fields, "ref_status": _ref_status(fields["ref_signed"]),
+                         "reference": kind, "ref_uncertainty": unc, "time_us": ans["time_us"],
+                         "message": ans["message"]})
+    return rows
+
+
+def _ref_status(sd: float) -> str:
+    from harness.reference import TOUCH_TOL
+
+    return "touching" if abs(sd) <= TOUCH_TOL else ("overlapping" if sd < 0 else "separated")
+
+
 def run(config: StabilityConfig, load_object, progress: bool = False, workers: int = 1,
         scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(main table over all families and ENGINES, coal duality-gap sweep table). The native engines
@@ -435,15 +682,26 @@ def run(config: StabilityConfig, load_object, progress: bool = False, workers: i
             print(f"engine {name} skipped: {exc}")
     cases = (build_cases(config, load_object) + penetration_cases(config, load_object)
              + (fcl_gap_cases(config) if config.fcl_gap else []))
+    draws = generated_tasks(config)
     if spread:
         for engine in engines.values():
             engine.close()
         plugins = tuple((n, PLUGIN_SPECS[n]) for n in engines if n in PLUGIN_SPECS)
-        table = _run_spread(cases, CaseTask(None, tuple(engines), plugins), workers, scheduler, progress)
+        template = CaseTask(None, tuple(engines), plugins)
+        tasks = [replace(template, draw=d) for d in draws] + [replace(template, case=c) for c in cases]
+        # the depth oracle's draws take seconds each: handed out first, so no worker is left with one at the end
+        order = sorted(range(len(tasks)), key=lambda i: not _slow(tasks[i]))
+        table = _run_spread(tasks, None, workers, scheduler, progress, order)
     else:
         judged = isolated(engines)
         try:
             table = run_cases(cases, judged, progress)
+            rows = []
+            for t, d in enumerate(draws):
+                rows += draw_rows(*d, judged)
+                if progress:
+                    print(f"  [{t + 1}/{len(draws)}] generated draw {d[1]}", flush=True)
+            table = _with_generated(table, pd.DataFrame(rows))
         finally:
             for engine in {id(e): e for e in [*engines.values(), *judged.values()]}.values():
                 engine.close()
@@ -472,6 +730,7 @@ class CaseTask:
     engines: tuple = ()
     plugins: tuple = ()  # ("name", "module:Class") of engines registered from --engine in the parent
     sweep: tuple | None = None
+    draw: tuple | None = None  # (seed, draw j, pose indices): a generated draw instead of a case (draw_rows)
 
 
 def _task_engines(task: CaseTask) -> dict:
@@ -499,31 +758,57 @@ def _task_engines(task: CaseTask) -> dict:
 
 
 def run_case_task(task: CaseTask) -> list[dict]:
-    """A task's rows (see :func:`case_rows`)."""
+    """A task's rows (see :func:`case_rows` and :func:`draw_rows`)."""
+    if task.draw is not None:
+        return draw_rows(*task.draw, _task_engines(task))
     return case_rows(task.case, _task_engines(task))
 
 
-def _run_spread(cases: list[Case], template: CaseTask, workers: int, scheduler: str | None,
-                progress: bool) -> pd.DataFrame:
-    """run_cases' table, each case a task (see :class:`CaseTask`) on workers or a Dask cluster."""
-    from dataclasses import replace
+def _slow(task: CaseTask) -> bool:
+    return task.draw is not None and GENERATED_SCHEDULE[task.draw[1] % len(GENERATED_SCHEDULE)] in SLOW_FAMILIES
 
+
+def _with_generated(table: pd.DataFrame, generated: pd.DataFrame) -> pd.DataFrame:
+    """The hand-built cases' rows (source 'hand-built') followed by the generated ones."""
+    table = table.assign(source="hand-built")
+    return pd.concat([table, generated], ignore_index=True) if len(generated) else table
+
+
+def _run_spread(cases: list, template: CaseTask | None, workers: int, scheduler: str | None,
+                progress: bool, order: list | None = None) -> pd.DataFrame:
+    """run_cases' table, each case a task (see :class:`CaseTask`) on workers or a Dask cluster. cases:
+    Cases (each made a task from template) or, template None, CaseTasks (hand-built and generated, the
+    table then as run's: the hand-built rows, then the generated ones, in task order)."""
     from harness.cluster import run_tasks
+
+    tasks = cases if template is None else [replace(template, case=c) for c in cases]
 
     def done(i: int, _rows) -> None:
         if progress:
-            print(f"  [{i + 1}/{len(cases)}] {cases[i].family} {cases[i].case} {cases[i].param:g}", flush=True)
+            t = tasks[i]
+            what = (f"generated draw {t.draw[1]}" if t.draw is not None
+                    else f"{t.case.family} {t.case.case} {t.case.param:g}")
+            print(f"  [{i + 1}/{len(tasks)}] {what}", flush=True)
 
-    results = run_tasks(run_case_task, [replace(template, case=c) for c in cases], workers, scheduler, done=done)
-    return pd.DataFrame([row for rows in results for row in rows])
+    results = run_tasks(run_case_task, tasks, workers, scheduler, order=order, done=done)
+    hand = pd.DataFrame([row for t, rows in zip(tasks, results) if t.draw is None for row in rows])
+    if template is not None:
+        return hand
+    return _with_generated(hand, pd.DataFrame([row for t, rows in zip(tasks, results) if t.draw is not None
+                                               for row in rows]))
 
 
 def summarize(table: pd.DataFrame, by=("engine",)) -> pd.DataFrame:
+    """Verdict counts per group: n queries (one case judged by one engine), ok, wrong, failed, disputed
+    (generated cases only: a 'wrong' the depth oracle's lower bound does not prove, see draw_rows), the
+    depth verdicts likewise, the largest errors and the median time per query."""
+    table = table.assign(depth_verdict=table.depth_verdict.fillna(""))
     g = table.groupby(list(by), sort=False)
     out = g.agg(n=("verdict", "size"),
                 ok=("verdict", lambda v: int((v == "ok").sum())),
                 wrong=("verdict", lambda v: int((v == "wrong").sum())),
                 failed=("verdict", lambda v: int((v == "failed").sum())),
+                disputed=("verdict", lambda v: int((v == "disputed").sum())),
                 max_abs_error=("abs_error", "max"),
                 max_rel_error=("rel_error", "max"),
                 median_time_us=("time_us", "median"),
@@ -531,9 +816,35 @@ def summarize(table: pd.DataFrame, by=("engine",)) -> pd.DataFrame:
                 depth_ok=("depth_verdict", lambda v: int((v == "ok").sum())),
                 depth_wrong=("depth_verdict", lambda v: int((v == "wrong").sum())),
                 depth_failed=("depth_verdict", lambda v: int((v == "failed").sum())),
+                depth_disputed=("depth_verdict", lambda v: int((v == "disputed").sum())),
                 no_depth=("depth_verdict", lambda v: int((v == "no depth").sum())),
                 max_abs_depth_error=("depth_abs_error", "max")).reset_index()
     return out
+
+
+BAD = ("wrong", "failed")
+
+
+def failure_grid(table: pd.DataFrame) -> pd.DataFrame:
+    """Per family and engine: n (cases the engine was judged on), bad (cases whose distance verdict or
+    depth verdict is wrong or failed), share = bad / n, and source (hand-built or generated); the
+    families in the table's order, hand-built first."""
+    t = table.assign(bad=table.verdict.isin(BAD) | table.depth_verdict.fillna("").isin(BAD),
+                     source=table.get("source", pd.Series("hand-built", index=table.index)).fillna("hand-built"))
+    grid = t.groupby(["source", "family", "engine"], sort=False).agg(n=("bad", "size"), bad=("bad", "sum"))
+    grid = grid.reset_index()
+    grid["bad"] = grid.bad.astype(int)
+    grid["share"] = grid.bad / grid.n
+    return grid
+
+
+def case_count(table: pd.DataFrame) -> dict:
+    """Cases (one shape pair at one pose) in a table: {'hand-built': n, 'generated': n}."""
+    source = table.get("source", pd.Series("hand-built", index=table.index)).fillna("hand-built")
+    hand = table[source == "hand-built"]
+    gen = table[source == "generated"]
+    return {"hand-built": int(len(hand.drop_duplicates(["family", "case", "param", "pose"]))),
+            "generated": int(gen.case_index.nunique()) if len(gen) else 0}
 
 
 def depth_worst_cases(table: pd.DataFrame, k: int = 3) -> pd.DataFrame:
