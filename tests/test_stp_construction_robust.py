@@ -134,6 +134,41 @@ def test_cocircular_rings_far_from_the_origin():
         assert_closed_and_holding(build_topology(x, r, r + rho), x)
 
 
+# ------------------------------------------------------------------------------ volumes
+
+VOLUME_FIXTURES = sorted((Path(__file__).parent / "fixtures" / "stp_volume").glob("*.json"))
+
+
+@pytest.mark.parametrize("path", VOLUME_FIXTURES, ids=[p.stem for p in VOLUME_FIXTURES])
+def test_volumes_with_a_torus_wider_than_half_a_turn_match_the_oracle(path):
+    # R 1e-4 .. 2e-3 above its minimum over 4 and 7 points: Q is a lens whose edge runs more than half
+    # way round one circle, a region two half-spaces could not hold (12 % and 53 % of directions had no
+    # owner); the judge compares the support with harness.stp_oracle's brute force
+    import json
+
+    import spq
+
+    c = json.loads(path.read_text())
+    verdict, detail = check_construction(c["points"], c["r"], c["R"])
+    assert verdict == "ok", detail
+    stp = spq.STPBV.from_points(np.array(c["points"]), c["r"], c["R"])
+    assert (stp.torus_arc > np.pi / 2).any()  # the wide torus, now two patches of one geometry
+    u = np.random.default_rng(0).normal(size=(20000, 3))
+    assert (stp.owner_counts(u / np.linalg.norm(u, axis=1, keepdims=True)) == 1).all()
+    mesh = stp.to_mesh(1e-3 * c["R"])
+    h_mesh = (mesh.vertices @ u.T).max(axis=0)
+    assert (h_mesh <= (stp.support(u) * u).sum(axis=1) + 1e-12).all()  # the mesh stays inside the volume
+
+
+def test_a_right_triangle_at_its_enclosing_radius_is_a_ball_owned_by_its_two_faces():
+    # harness.fuzz_construction seed 3 case 235: three points of a box face, R - r their enclosing
+    # radius; the hypotenuse is a diameter, so the plane through it and the centre was undefined
+    # (a NaN boundary: no direction had an owner)
+    c = case(3, 235)
+    verdict, detail = check_construction(c["points"], c["r"], c["R"])
+    assert verdict == "ok", detail
+
+
 # ------------------------------------------------------------------------------ fuzz family
 
 @pytest.mark.parametrize("seed, index, what", [
@@ -160,10 +195,8 @@ def test_fuzz_cases_that_failed_now_build(seed, index, what):
 
 def test_construction_family_never_fails_and_its_volumes_cover_their_clouds():
     # 150 seeded clouds from every family of harness.fuzz_construction; the construction must build
-    # them all, with a topology the judge accepts ('construction:' checks). The volume built on it may
-    # still be wrong only where the topology holds what the STP-BV's regions of directions cannot
-    # express (the judge names it: vertices with only zero-width tori when R - r is the enclosing
-    # radius, reflex tori, R - r beyond 1e7 sizes), a limit of spq.shapes.stpbv, not of construction
+    # them all, with a topology the judge accepts ('construction:' checks), and the volume built on it
+    # must hold its cloud and match the brute-force support ('volume:' checks)
     failed, wrong = [], []
     for i, case in enumerate(construction_cases(np.random.default_rng(2024), 150)):
         if len(case["points"]) > 2000:  # keep the test quick; the campaign covers up to 10,000
@@ -171,7 +204,7 @@ def test_construction_family_never_fails_and_its_volumes_cover_their_clouds():
         verdict, detail = check_construction(case["points"], case["r"], case["R"])
         if verdict == "failed":
             failed.append((i, case["family"], detail))
-        elif verdict == "wrong" and (detail.startswith("construction:") or "[topology has" not in detail):
+        elif verdict == "wrong":
             wrong.append((i, case["family"], detail))
     assert not failed, failed
     assert not wrong, wrong

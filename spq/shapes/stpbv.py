@@ -19,6 +19,79 @@ def _unit(v: np.ndarray) -> np.ndarray:
 SURFACE_PUSH = 1e-6  # how far past its support plane a point is pushed to find its patch (times the radius)
 
 
+SAME_CENTRE_REL = 1e-6  # two face centres this close (relative to their distance from the torus's centre) are one
+FLAT_EDGE_SIN = 1e-9  # sine below which a face's third corner counts as on a boundary plane
+WIDE_ARC_SLACK = 1e-6  # rad: a torus arc wider than pi minus this is split (exactly pi is still a half-space)
+
+
+def _across(v: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """The unit component of each v (n, 3) across its axis (n, 3)."""
+    return _unit(v - np.einsum("ij,ij->i", v, axes)[:, None] * axes)
+
+
+def _flat_boundary_axes(x, faces, a, b, f1, f2, centre):
+    """Unit normals (n, 3) of the boundaries between the faces f1 (a -> b in its winding, owning the
+    positive side) and f2 of zero-width tori (a, b), whose big spheres share ``centre``: the plane
+    through the centre and the edge, as the faces' regions are the cones of their triangles seen
+    from it. Where that plane does not part the two faces' third corners (the centre on the edge's
+    line, e.g. the hypotenuse of a right triangle at R's minimum, or in the faces' own plane, e.g. the
+    front and back of one triangle) any plane through the edge between the faces will do: the one
+    halving the angle between them, or for two faces on one triangle that triangle's plane."""
+    e = x[a] - x[b]
+    axes = np.cross(e, x[b] - centre)
+    third1, third2 = faces[f1].sum(axis=1) - a - b, faces[f2].sum(axis=1) - a - b
+    size = np.linalg.norm(axes, axis=1)
+    side1 = np.einsum("ij,ij->i", axes, x[third1] - centre)
+    side2 = np.einsum("ij,ij->i", axes, x[third2] - centre)
+    slack = FLAT_EDGE_SIN * size * np.maximum(np.linalg.norm(x[third1] - centre, axis=1),
+                                             np.linalg.norm(x[third2] - centre, axis=1))
+    bad = ~((side1 > slack) & (side2 < -slack))
+    if bad.any():
+        i = np.flatnonzero(bad)
+        eu = _unit(e[i])
+        t1 = _across(x[third1[i]] - x[b[i]], eu)
+        t2 = _across(x[third2[i]] - x[b[i]], eu)
+        split = t1 - t2
+        n1 = _unit(np.cross(x[b[i]] - x[a[i]], x[third1[i]] - x[a[i]]))  # f1's outward normal
+        folded = np.linalg.norm(split, axis=1) <= FLAT_EDGE_SIN
+        axes[i] = np.where(folded[:, None], n1, split)
+    return _unit(axes)
+
+
+def _torus_arcs(centres, axes, face_axes, f1, f2, face_centres):
+    """Each torus's arc of directions across its axis: (start (T, 3), turn (T, 3), arc (T,) rad).
+
+    It starts at its first face's boundary, pointing away from that face's centre, and turns towards
+    the torus's side of the face's plane (turn, a unit vector across the axis) until the second
+    face's boundary; a torus missing a face (a spindle) goes the whole turn."""
+    T = len(centres)
+    both = (f1 != NO_FACE) & (f2 != NO_FACE)
+    start = np.zeros((T, 3))
+    turn = np.zeros((T, 3))
+    arc = np.full(T, 2.0 * np.pi)
+    if both.any():
+        i = np.flatnonzero(both)
+        start[i] = _across(centres[i] - face_centres[f1[i]], axes[i])
+        turn[i] = -face_axes[i, 0]  # the torus lies where the face's plane is negative
+        end = _across(centres[i] - face_centres[f2[i]], axes[i])
+        arc[i] = np.mod(np.arctan2(np.einsum("ij,ij->i", end, turn[i]), np.einsum("ij,ij->i", end, start[i])),
+                        2.0 * np.pi)
+        # Faces whose centres coincide up to rounding (R at its minimum: Q is a point) leave the
+        # arc's side to noise; it is then the short one (an arc of a whole turn less a rounding
+        # would need Q's edge to go all round its circle but for a gap of that size)
+        chord = np.linalg.norm(face_centres[f1[i]] - face_centres[f2[i]], axis=1)
+        size = np.linalg.norm(centres[i] - face_centres[f1[i]], axis=1)
+        tiny = chord <= SAME_CENTRE_REL * size
+        arc[i[tiny]] = np.minimum(arc[i[tiny]], 2.0 * np.pi - arc[i[tiny]])
+    spindle = np.flatnonzero(~both)
+    if len(spindle):
+        e = axes[spindle]
+        fallback = np.where(np.abs(e[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+        start[spindle] = _across(fallback, e)
+        turn[spindle] = np.cross(e, start[spindle])
+    return start, turn, arc
+
+
 class STPBV(Shape):
     """An STP-BV in its local frame (metres): small spheres of radius r on the vertices, big
     spheres of radius R on the faces, tori on the edges (paper section II, NOTES section 1).
@@ -29,7 +102,10 @@ class STPBV(Shape):
     ----------
     topology : STPTopology
     r, R : float
-    torus_centres, torus_axes : (E, 3); torus_radii : (E,)  (real tori only, in patch order)
+    torus_centres, torus_axes : (T, 3); torus_radii : (T,); torus_edges : (T,) topology edge, in patch
+        order: the real tori, then the second halves of those whose arc is wider than half a turn
+    torus_start, torus_turn : (T, 3); torus_arc : (T,) each torus patch's arc of directions across its
+        axis: from torus_start, turning towards torus_turn, through torus_arc radians
     boundary_axes : (B, 3); boundary_cos : (B,)  every region boundary, stored once
     patch_offsets : (P + 1,); records : (nrec, 3) int: (boundary, side, neighbour patch) per patch
     hull : Polyhedron or None, the convex hull of the small-sphere centres (the underlying PCH)
@@ -85,38 +161,75 @@ class STPBV(Shape):
         V, F = len(x), len(topo.faces)
         rho = topo.rho
         real = np.flatnonzero(topo.edge_real)
-        self.torus_edges = real
         a, b = topo.edges[real, 0], topo.edges[real, 1]
         length = np.linalg.norm(x[a] - x[b], axis=1)
-        self.torus_centres = 0.5 * (x[a] + x[b])
-        self.torus_axes = (x[a] - x[b]) / length[:, None]
-        self.torus_radii = np.sqrt(np.maximum(rho * rho - 0.25 * length * length, 0.0))
-        # Every region boundary, built in bulk (a Python loop over edges took seconds on hulls of a
-        # few thousand vertices). Order, as the records and the feature searches expect: per real
-        # torus its face boundaries (f1, then f2, where present), then its va and vb boundaries;
-        # then one boundary per zero-width torus.
+        centres = 0.5 * (x[a] + x[b])
+        axes = (x[a] - x[b]) / length[:, None]
         f1, f2 = topo.edge_faces[real, 0], topo.edge_faces[real, 1]
-        torus = V + F + np.arange(len(real))
+        # the face boundaries' planes, oriented towards the face: a face owns u where u.axis >= 0
         face_axes = np.zeros((len(real), 2, 3))
         for side, (f, u, w) in enumerate(((f1, a, b), (f2, b, a))):
             m = f != NO_FACE
             c = topo.face_centres[f[m]]
-            face_axes[m, side] = _unit(np.cross(x[u[m]] - c, x[w[m]] - c))
-        cos_t = length / (2.0 * rho)
+            face_axes[m, side] = _unit(np.cross(x[u[m]] - x[w[m]], x[w[m]] - c))
+        start, turn, arc = _torus_arcs(centres, axes, face_axes, f1, f2, topo.face_centres)
+        # A torus's region is the wedge between its faces' planes, an intersection of two half-spaces,
+        # which cannot hold an arc wider than half a turn (a lens-shaped Q at R near its minimum has
+        # such edges): such a torus becomes two patches on one geometry, split at its arc's middle.
+        wide = np.flatnonzero((arc > np.pi - WIDE_ARC_SLACK) & (f1 != NO_FACE) & (f2 != NO_FACE))
+        half = 0.5 * arc[wide]
+        middle = np.cos(half)[:, None] * start[wide] + np.sin(half)[:, None] * turn[wide]
+        towards_end = np.cos(half)[:, None] * turn[wide] - np.sin(half)[:, None] * start[wide]
+        arc[wide] = half
+        order = np.concatenate([np.arange(len(real)), wide])  # the second halves' tori last
+        self.torus_edges = real[order]
+        self.torus_centres, self.torus_axes = centres[order], axes[order]
+        self.torus_radii = np.sqrt(np.maximum(rho * rho - 0.25 * length[order] ** 2, 0.0))
+        # per torus patch, its arc of directions across the axis: from torus_start, turning towards
+        # torus_turn, through torus_arc radians (the tessellation walks it)
+        self.torus_start = np.concatenate([start, middle])
+        self.torus_turn = np.concatenate([turn, towards_end])
+        self.torus_arc = np.concatenate([arc, half])
+        T = len(order)
+        torus = V + F + np.arange(T)
+        second = V + F + len(real) + np.arange(len(wide))
+        # Every region boundary, built in bulk (a Python loop over edges took seconds on hulls of a
+        # few thousand vertices). Order, as the records and the feature searches expect: per torus
+        # patch its face (or middle) boundaries, then its va and vb boundaries; then one boundary per
+        # zero-width torus.
+        face_axes = face_axes[order]
+        neighbours = np.stack([V + f1, V + f2], axis=1)[order]
+        present = np.stack([f1 != NO_FACE, f2 != NO_FACE], axis=1)[order]
+        n = len(real)
+        # the first half keeps face 1 and meets its second half at the middle, which keeps face 2
+        face_axes[wide, 1], neighbours[wide, 1] = towards_end, second
+        ends = np.stack([a, b], axis=1)[order]
+        cos_t = length[order] / (2.0 * rho)
         block_axes = np.concatenate([face_axes, self.torus_axes[:, None], -self.torus_axes[:, None]], axis=1)
-        block_cos = np.stack([np.zeros(len(real)), np.zeros(len(real)), cos_t, cos_t], axis=1)
-        block_inside = np.stack([V + f1, V + f2, a, b], axis=1)
-        present = np.stack([f1 != NO_FACE, f2 != NO_FACE, np.ones(len(real), bool), np.ones(len(real), bool)],
-                           axis=1)
+        block_cos = np.stack([np.zeros(T), np.zeros(T), cos_t, cos_t], axis=1)
+        block_inside = np.concatenate([neighbours, ends], axis=1)
+        present = np.concatenate([present, np.ones((T, 2), bool)], axis=1)
+        present[n:, 0] = False  # a middle boundary is recorded once, from the first half's side
         flat = np.flatnonzero(~topo.edge_real)
         g1 = topo.edge_faces[flat, 0]
         ga, gb = topo.edges[flat, 0], topo.edges[flat, 1]
         axes = np.concatenate([block_axes[present].reshape(-1, 3),
-                               _unit(np.cross(x[ga] - topo.face_centres[g1], x[gb] - topo.face_centres[g1]))])
+                               _flat_boundary_axes(x, topo.faces, ga, gb, g1, topo.edge_faces[flat, 1],
+                                                   topo.face_centres[g1])])
         coss = np.concatenate([block_cos[present], np.zeros(len(flat))])
         inside = np.concatenate([block_inside[present], V + g1])
         outside = np.concatenate([np.broadcast_to(torus[:, None], present.shape)[present],
                                   V + topo.edge_faces[flat, 1]])
+        # a vertex whose tori all have zero width (R at its minimum) owns no direction: an empty
+        # region (u.axis >= 2, never) keeps it reachable from its first face
+        lonely = np.setdiff1d(np.arange(V), topo.edges[real].ravel()) if F else np.zeros(0, dtype=np.int64)
+        if len(lonely):
+            first_face = np.full(V, -1, dtype=np.int64)
+            first_face[topo.faces[::-1].ravel()] = np.repeat(np.arange(F)[::-1], 3)
+            axes = np.concatenate([axes, np.tile([[1.0, 0.0, 0.0]], (len(lonely), 1))])
+            coss = np.concatenate([coss, np.full(len(lonely), 2.0)])
+            inside = np.concatenate([inside, lonely])
+            outside = np.concatenate([outside, V + first_face[lonely]])
         k = np.arange(len(coss))
         # two records per boundary, (patch, boundary, side, neighbour), one from each side
         recs = np.stack([np.stack([inside, k, np.ones_like(k), outside], axis=1),
@@ -126,7 +239,7 @@ class STPBV(Shape):
         recs = recs.astype(np.int64).reshape(-1, 4)
         order = np.argsort(recs[:, 0], kind="stable")
         recs = recs[order]
-        P = V + F + len(real)
+        P = V + F + T
         self.patch_offsets = np.zeros(P + 1, dtype=np.int64)
         np.cumsum(np.bincount(recs[:, 0], minlength=P), out=self.patch_offsets[1:])
         self.records = np.ascontiguousarray(recs[:, 1:])

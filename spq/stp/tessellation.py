@@ -73,26 +73,12 @@ def torus_samples(stp, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
     topo = stp.topology
     R, rho = stp.R, topo.rho
     m, e, a = stp.torus_centres, stp.torus_axes, stp.torus_radii
-    faces = topo.edge_faces[stp.torus_edges]
     length = np.linalg.norm(topo.vertices[topo.edges[stp.torus_edges, 0]]
                             - topo.vertices[topo.edges[stp.torus_edges, 1]], axis=1)
     t0 = np.arcsin(np.clip(length / (2.0 * rho), 0.0, 1.0))
 
-    def across(direction):  # component perpendicular to the axis, normalised; a fallback where it vanishes
-        w = direction - np.einsum("ij,ij->i", direction, e)[:, None] * e
-        norm = np.linalg.norm(w, axis=1)
-        fallback = np.cross(e, np.where(np.abs(e[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
-        return np.where(norm[:, None] > 1e-12, w / np.maximum(norm, 1e-300)[:, None], unit(fallback))
-
-    spindle = (faces[:, 0] == NO_FACE) | (faces[:, 1] == NO_FACE)
-    c1 = topo.face_centres[np.where(spindle, 0, faces[:, 0])] if len(topo.faces) else m
-    c2 = topo.face_centres[np.where(spindle, 0, faces[:, 1])] if len(topo.faces) else m
-    w1 = across(np.where(spindle[:, None], e[:, [1, 2, 0]], m - c1))
-    w2 = across(np.where(spindle[:, None], e[:, [1, 2, 0]], m - c2))
-    u2 = w2 - np.einsum("ij,ij->i", w2, w1)[:, None] * w1
-    u2 = np.where(np.linalg.norm(u2, axis=1)[:, None] > 1e-12, u2, np.cross(e, w1))
-    u2 = unit(u2)
-    phi = np.where(spindle, 2.0 * math.pi, np.arccos(np.clip(np.einsum("ij,ij->i", w1, w2), -1.0, 1.0)))
+    w1, u2, phi = stp.torus_start, stp.torus_turn, stp.torus_arc
+    spindle = phi >= 2.0 * math.pi
     h_t = 2.0 * _step(0.5 * tolerance, R)
     h_psi = np.array([2.0 * _step(0.5 * tolerance, R - ai) for ai in a])
     n_t = np.maximum(2, np.ceil(2.0 * t0 / h_t).astype(np.int64) + 1)
