@@ -3,7 +3,9 @@ the same suite, whose tables the spread run must reproduce exactly (timing colum
 
 from __future__ import annotations
 
+import json
 import os
+import time
 
 import pandas as pd
 import pytest
@@ -156,6 +158,53 @@ def test_a_cold_scene_sweep_on_a_dask_local_cluster_equals_the_serial_run(arm_sw
 
     scene, qs, serial = arm_sweep
     assert_same_sweep(serial, sr.run_scene_spread(scene, qs, prune=0.05, scheduler=dask_scheduler))
+
+
+def tiny_campaign(**where):
+    """A small fuzz campaign (harness.fuzz.campaign): three families, 12 cases of 40 pose pairs, coal as
+    the peer, rounds of 3 one-case tasks; its state after the run."""
+    from harness.fuzz.campaign import CampaignConfig, run
+
+    config = CampaignConfig(seed=7, families=["primitives", "hull-needle", "cse"], poses=40,
+                            peers=["coal"], cases_per_task=1)
+    return run(config, None, max_queries=12 * 2 * 40, tasks_per_round=3, **where)
+
+
+def assert_same_campaign(serial, spread) -> None:
+    from harness.fuzz.campaign import table
+
+    assert (spread.next_case, spread.rounds) == (serial.next_case, serial.rounds) == (12, 4)
+    pd.testing.assert_frame_equal(table(serial), table(spread), check_exact=True)
+    assert json.dumps(spread.bad) == json.dumps(serial.bad)
+
+
+@pytest.fixture(scope="module")
+def serial_campaign():
+    pytest.importorskip("coal")
+    return tiny_campaign()
+
+
+@pytest.mark.engines
+def test_a_fuzz_campaign_on_a_dask_local_cluster_equals_the_serial_run(serial_campaign, dask_scheduler):
+    assert_same_campaign(serial_campaign, tiny_campaign(scheduler=dask_scheduler))
+
+
+@pytest.mark.engines
+def test_a_fuzz_campaign_on_two_processes_equals_the_serial_run(serial_campaign):
+    assert_same_campaign(serial_campaign, tiny_campaign(workers=2))
+
+
+def pid_after(seconds: float) -> int:
+    """The id of the process that ran this task, after ``seconds`` of sleep (so that every worker takes some)."""
+    time.sleep(seconds)
+    return os.getpid()
+
+
+def test_a_runner_keeps_its_worker_processes_from_batch_to_batch():
+    with cluster.TaskRunner(2) as runner:
+        first = set(runner.run(pid_after, [0.2] * 6))
+        second = set(runner.run(pid_after, [0.2] * 6))
+    assert os.getpid() in first and len(first) == 2 and second == first
 
 
 def test_a_failing_task_raises_its_error_here():

@@ -6,7 +6,10 @@ Case k (k = 0, 1, 2, ...) is family ``families[k % len(families)]`` drawn with
 resumed campaign (the state file names the next case) continues exactly where the last one stopped.
 Rounds of ``tasks_per_round`` tasks of ``cases_per_task`` cases run until the time budget or the query
 count is reached; the state (counts per family, engine and mode; the wrong and failed spq cases found,
-up to ``keep_bad`` per round) is written after each round, atomically.
+up to ``keep_bad`` per round) is written after each round, atomically. The workers are started once
+per campaign and keep their peers (engines in child processes) and spq's loaded kernels from round to
+round, and the rounds overlap (a worker free at a round's end takes the next round's first task), so
+that no worker waits for a round's slowest task.
 """
 
 from __future__ import annotations
@@ -119,6 +122,16 @@ def run_task(task: dict) -> dict:
     return {"counts": counts, "bad": bad}
 
 
+def warm_worker(config: dict, peers: list, poses: int = 20) -> float:
+    """Ready this process for the campaign's tasks (a benchmark's warm-up, run on every worker): the
+    peers built and kept, as a task keeps them, and one case of each family judged on ``poses`` pose
+    pairs, which loads spq's compiled code for every shape. Returns the seconds it took."""
+    start = time.perf_counter()
+    families = CampaignConfig(**config).family_names()
+    run_task({"config": {**config, "poses": poses}, "peers": list(peers), "cases": list(range(len(families)))})
+    return time.perf_counter() - start
+
+
 def available_peers(names) -> list:
     """The peers among ``names`` whose packages import (None: DEFAULT_PEERS)."""
     from importlib.util import find_spec
@@ -135,49 +148,101 @@ def available_peers(names) -> list:
 
 def run(config: CampaignConfig, state_path=None, budget_s: float | None = None, max_queries: int | None = None,
         workers: int = 1, scheduler: str | None = None, tasks_per_round: int | None = None, keep_bad: int = 50,
-        progress: bool = False) -> State:
-    """Run (or resume) the campaign until budget_s seconds or max_queries spq queries in total."""
+        progress: bool = False, runner=None) -> State:
+    """Run (or resume) the campaign until budget_s seconds or max_queries spq queries in total.
+
+    The workers (harness.cluster.TaskRunner: this process, local processes or a Dask cluster) are
+    started once for the whole campaign, or given as ``runner`` (open, kept open): each builds its
+    peers and loads spq's kernels once. Rounds follow one another without a pause: a worker free
+    at the end of a round takes a task of the next while the round's last tasks run, and a round
+    enters the state, in case order, once all its tasks are in; the budget is checked as each new
+    round is started."""
+    from contextlib import nullcontext
+
     from tqdm import tqdm
 
-    from harness.cluster import run_tasks
+    from harness.cluster import TaskRunner
 
     if budget_s is None and max_queries is None:
         raise ValueError("a campaign needs a time budget (seconds) or a query count to stop at")
     state = State.load_or_new(state_path, config)
     peers = available_peers(config.peers)
-    per_case = 2 * config.poses
-    tasks_per_round = tasks_per_round or max(2, 2 * workers)
+    tasks_per_round = tasks_per_round or max(2, 2 * (runner.workers if runner is not None else workers))
     start = time.perf_counter()
-    total = max_queries if max_queries is not None else None
-    with tqdm(total=total, initial=state.spq_queries(), unit="query", unit_scale=True, desc="spq fuzz",
-              disable=not progress) as bar:
-        while True:
-            spent = time.perf_counter() - start
-            if budget_s is not None and spent >= budget_s:
-                break
-            if max_queries is not None and state.spq_queries() >= max_queries:
-                break
-            left = None if max_queries is None else max_queries - state.spq_queries()
-            n_cases = tasks_per_round * config.cases_per_task
-            if left is not None:
-                n_cases = min(n_cases, -(-left // per_case))
-            cases = list(range(state.next_case, state.next_case + n_cases))
-            chunks = [cases[i:i + config.cases_per_task] for i in range(0, len(cases), config.cases_per_task)]
-            tasks = [{"config": state.config, "peers": peers, "cases": c} for c in chunks]
-            results = run_tasks(run_task, tasks, workers=workers, scheduler=scheduler,
-                                done=lambda i, r: bar.update(sum(x["queries"] for x in r["counts"]
-                                                                 if x["engine"] == "spq")))
-            round_bad = []
-            for r in results:
-                state.merge(r)
-                round_bad.extend(r["bad"])
-            state.bad.extend(round_bad[:keep_bad])
-            state.next_case += n_cases
-            state.rounds += 1
-            state.seconds += time.perf_counter() - start - spent
-            if state_path is not None:
-                state.save(state_path)
+    seconds_before = state.seconds
+    with (nullcontext(runner) if runner is not None else TaskRunner(workers, scheduler)) as runner, \
+            tqdm(total=max_queries, initial=state.spq_queries(), unit="query", unit_scale=True, desc="spq fuzz",
+                 disable=not progress) as bar:
+        while not _finished(state, start, budget_s, max_queries):
+            rounds = _Rounds(state, state_path, peers, config.cases_per_task, tasks_per_round, keep_bad, start,
+                             seconds_before, budget_s, max_queries, bar)
+            runner.stream(run_task, rounds.tasks(), rounds.done)
     return state
+
+
+def _finished(state: State, start: float, budget_s, max_queries) -> bool:
+    return ((budget_s is not None and time.perf_counter() - start >= budget_s)
+            or (max_queries is not None and state.spq_queries() >= max_queries))
+
+
+class _Rounds:
+    """A campaign's rounds as one stream of tasks: tasks() hands them out round after round (a round:
+    ``tasks_per_round`` tasks of ``cases_per_task`` consecutive cases, fewer for the last cases
+    max_queries asks), deciding at each new round whether the budget allows it; done() collects the
+    results and merges every round whose tasks are all in, in order, saving the state after each."""
+
+    def __init__(self, state: State, state_path, peers: list, cases_per_task: int, tasks_per_round: int,
+                 keep_bad: int, start: float, seconds_before: float, budget_s, max_queries, bar):
+        self.state, self.state_path, self.peers = state, state_path, peers
+        self.cases_per_task, self.tasks_per_round, self.keep_bad = cases_per_task, tasks_per_round, keep_bad
+        self.start, self.seconds_before, self.budget_s, self.max_queries, self.bar = \
+            start, seconds_before, budget_s, max_queries, bar
+        self.per_case = 2 * CampaignConfig(**state.config).poses  # spq queries of a case (unsigned and signed)
+        self.rounds: list[dict] = []  # round -> {"cases": n, "results": [task results or None]}
+        self.merged = 0  # rounds merged into the state
+
+    def tasks(self):
+        """(round, task index) and task, round after round, while the budget and the query count allow."""
+        next_case = self.state.next_case
+        planned = self.state.spq_queries()  # spq queries once the rounds handed out are in
+        while True:
+            if self.budget_s is not None and time.perf_counter() - self.start >= self.budget_s:
+                return
+            n_cases = self.tasks_per_round * self.cases_per_task
+            if self.max_queries is not None:
+                if planned >= self.max_queries:
+                    return
+                n_cases = min(n_cases, -(-(self.max_queries - planned) // self.per_case))
+            cases = list(range(next_case, next_case + n_cases))
+            chunks = [cases[i:i + self.cases_per_task] for i in range(0, n_cases, self.cases_per_task)]
+            r = len(self.rounds)
+            self.rounds.append({"cases": n_cases, "results": [None] * len(chunks)})
+            next_case += n_cases
+            planned += n_cases * self.per_case
+            for j, chunk in enumerate(chunks):
+                yield (r, j), {"config": self.state.config, "peers": self.peers, "cases": chunk}
+
+    def done(self, key, result: dict) -> None:
+        r, j = key
+        self.rounds[r]["results"][j] = result
+        self.bar.update(sum(x["queries"] for x in result["counts"] if x["engine"] == "spq"))
+        while self.merged < len(self.rounds) and all(x is not None for x in self.rounds[self.merged]["results"]):
+            self._merge(self.rounds[self.merged])
+            self.rounds[self.merged] = None  # its results are in the state
+            self.merged += 1
+
+    def _merge(self, round_: dict) -> None:
+        state = self.state
+        round_bad = []
+        for result in round_["results"]:
+            state.merge(result)
+            round_bad.extend(result["bad"])
+        state.bad.extend(round_bad[:self.keep_bad])
+        state.next_case += round_["cases"]
+        state.rounds += 1
+        state.seconds = self.seconds_before + time.perf_counter() - self.start
+        if self.state_path is not None:
+            state.save(self.state_path)
 
 
 def table(state: State):
