@@ -232,20 +232,41 @@ def tasks(config: CrosscheckConfig, engine_names: list[str], plugins: dict, agre
 
 
 def run_spread(config: CrosscheckConfig, engine_names: list[str], plugins: dict, agreement_poses: int, workers: int,
-               scheduler: str | None, progress: bool = True,
-               load_object=None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+               scheduler: str | None, progress: bool = True, load_object=None,
+               runner=None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
     """The crosscheck table (and the agreement table, or None) of :func:`run` and :func:`agreement`,
-    computed by tasks on ``workers`` processes or a Dask cluster (harness.cluster): equal to the
-    serial run's, each pair's poses drawn from its own seed as there."""
-    from harness.cluster import run_tasks
+    computed by tasks on ``workers`` processes or a Dask cluster (harness.cluster), or on the open
+    ``runner`` (a harness.cluster.TaskRunner, kept open): equal to the serial run's, each pair's poses
+    drawn from its own seed as there."""
+    from contextlib import nullcontext
+
+    from harness.cluster import TaskRunner
 
     todo, order = tasks(config, engine_names, plugins, agreement_poses, load_object)
     bar = tqdm(total=len(todo), desc="crosscheck tasks", unit="task", disable=not progress)
-    results = run_tasks(run_task, todo, workers, scheduler, order, done=lambda i, r: bar.update(1))
+    with nullcontext(runner) if runner is not None else TaskRunner(workers, scheduler) as where:
+        results = where.run(run_task, todo, order, done=lambda i, r: bar.update(1))
     bar.close()
     frames = [f for t, r in zip(todo, results) if t.kind == "pair" for f in r]
     rows = [r for t, r in zip(todo, results) if t.kind == "agreement"]
     return pd.concat(frames, ignore_index=True), (pd.DataFrame(rows) if agreement_poses > 0 else None)
+
+
+def warm_worker(engine_names: tuple, plugins: tuple = (), agreement: bool = True) -> float:
+    """Ready this process for crosscheck tasks (a benchmark's warm-up, run on every worker): the
+    judged engines built and kept, as a task keeps them, and the code of spq, of the reference and of
+    the scoring loaded, on one pose per bucket of a small pair (and an agreement row with coal if
+    ``agreement``). Returns the seconds it took."""
+    import time
+
+    from datasets import load_object
+
+    start = time.perf_counter()
+    engines = _judged_engines(tuple(engine_names), tuple(plugins))
+    pair_frames(0, "random_hull_50", "panda_hand", 1, 0, dict(BUCKETS), engines, load_object)
+    if agreement:
+        agreement_row(0, "random_hull_50", "panda_hand", 16, 0, load_object)
+    return time.perf_counter() - start
 
 
 _AGGREGATES = dict(
