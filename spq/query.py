@@ -241,8 +241,8 @@ def distance(A: Shape, pose_a, B: Shape, pose_b, tol: float = DEFAULT_TOL_ABS, r
     GJK stops when the certified gap (upper_bound - lower_bound) is at most tol + rel_tol * |distance|.
     Overlapping shapes give distance 0 and status 'overlapping'; with signed=True, distance = -depth
     from the expanding polytope (EPA), with witness points and bounds certified the same way (see
-    the module docstring). A query that cannot close its bounds within max_iter steps returns
-    status 'failed' with the bounds reached. Raises ValueError for bad poses or tolerances.
+    the module docstring). A query that cannot close its bounds within max_iter GJK steps (and
+    8 * max_iter EPA expansions, at most 1000) returns status 'failed' with the bounds reached. Raises ValueError for bad poses or tolerances.
     """
     return Pair(A, B, tol, rel_tol, max_iter, signed).distance(pose_a, pose_b)
 

@@ -15,7 +15,7 @@ entry: face, next edge, edges left); the faces an expansion removes; per vertex 
 features of A and of B it came from (a polytope's vertex, an STP-BV's patch).
 """
 
-EPA_MAX_VERTICES = 160  # support points: the initial tetrahedron, then one per EPA step (max_iter <= 128 by default)
+EPA_MAX_VERTICES = 1024  # support points: the initial tetrahedron, then one per EPA step (see epa.EPA_MAX_STEPS)
 EPA_MAX_FACES = 2 * EPA_MAX_VERTICES  # a closed triangulated polytope has 2V - 4 faces
 
 # float rows
