@@ -520,11 +520,18 @@ def _verdicts(name: str, answer: dict, i: int, sd: float, extent: float, unc: fl
     return out
 
 
-def _unproven(fields: dict) -> bool:
+def _unproven(fields: dict, upper: float) -> bool:
     """A 'wrong' that a lower bound of the signed distance (the depth oracle's value) does not prove:
-    the engine answers above it, where the oracle may have missed the minimum."""
-    return ((fields["verdict"] == "wrong" and fields["distance"] >= fields["ref_distance"])
-            or (fields["depth_verdict"] == "wrong" and fields["raw_distance"] >= fields["ref_signed"]))
+    the engine answers above it, where the oracle may have missed the minimum, and not above ``upper``
+    (m, the distance of two points of the bodies: an upper bound of the distance; NaN if none) by more
+    than the allowed error."""
+    def above_upper(value: float, allowed: float) -> bool:
+        return bool(np.isfinite(upper) and value > upper + allowed)
+
+    return ((fields["verdict"] == "wrong" and fields["distance"] >= fields["ref_distance"]
+             and not above_upper(fields["distance"], fields["allowed_error"]))
+            or (fields["depth_verdict"] == "wrong" and fields["raw_distance"] >= fields["ref_signed"]
+                and not above_upper(fields["raw_distance"], fields["allowed_depth_error"])))
 
 
 def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
@@ -537,9 +544,11 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
     a lower bound of the signed distance for any normal; upper: the distance between the two support
     points, apart), taken when spq's verdicts are the same at both of its ends; else the depth
     oracle's value (a lower bound of the signed distance), raised to the separation along spq's normals;
-    a 'wrong' that this lower bound does not prove (spq above it) goes to a denser oracle run (up to
+    a 'wrong' that this lower bound does not prove (spq above it, and not above the distance of the
+    support points along the oracle's normal, an upper bound) goes to a denser oracle run (up to
     DENSE_PER_CASE per draw) and stays 'disputed' if that does not settle it."""
     from harness.fuzz.judge import DENSE_PER_CASE, DENSE_POLISH, DENSE_STARTS, MODES, spq_outputs
+    from harness.depth_oracle import signed_distance as oracle_sd
     from harness.fuzz.oracle import POLYTOPES, oracle_shape, peer_polyhedron, reference, separation_bounds, spq_shape
     from spq.kernels.gjk import OUT_DISTANCE, OUT_NORMAL, OUT_STATUS, STATUS_NAMES
 
@@ -596,6 +605,11 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
                 got.append((float(lo[0]), float(up[0])))
         return got
 
+    def oracle_upper(normal) -> float:
+        """|b* - a*| of the support points along the oracle's normal at pose p (NaN unless apart)."""
+        _, up = separation_bounds(oa, ob, poses_a[p:p + 1], poses_b[p:p + 1], np.asarray(normal, float)[None])
+        return float(up[0])
+
     dense_left = DENSE_PER_CASE
     rows = []
     for p in range(n):
@@ -627,19 +641,20 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
                         sd, unc, kind = 0.5 * (lo + up), 0.5 * (up - lo), "bracket"
                         judged = {"spq": ends[2]}
             if not judged:
-                r = reference(oa, ob, poses_a[p], poses_b[p])
-                sd, unc, kind = max([r.signed_distance, *(b_[0] for b_ in bounds)]), r.uncertainty, "oracle"
+                # the depth oracle as harness.fuzz.oracle.reference runs it, its normal kept: the
+                # distance of the support points there is an upper bound of the distance (apart)
+                r = oracle_sd(oa.core, poses_a[p], ob.core, poses_b[p])
+                sd = max([float(r.signed_distance) - oa.radius - ob.radius, *(b_[0] for b_ in bounds)])
+                unc, kind, upper = float(r.spread), "oracle", oracle_upper(r.normal)
                 fields = _verdicts("spq", ans, p, sd, extent[p], unc)
-                if _unproven(fields) and dense_left > 0:
-                    from harness.depth_oracle import signed_distance
-
+                if _unproven(fields, upper) and dense_left > 0:
                     dense_left -= 1
-                    rd = signed_distance(oa.core, poses_a[p], ob.core, poses_b[p], starts=DENSE_STARTS,
-                                         polish=DENSE_POLISH)
+                    rd = oracle_sd(oa.core, poses_a[p], ob.core, poses_b[p], starts=DENSE_STARTS, polish=DENSE_POLISH)
                     sd = max(sd, float(rd.signed_distance) - oa.radius - ob.radius)
+                    upper = np.fmin(upper, oracle_upper(rd.normal))
                     unc, kind = max(unc, float(rd.spread)), "dense oracle"
                     fields = _verdicts("spq", ans, p, sd, extent[p], unc)
-                if _unproven(fields):  # never counted ok, never wrong without proof
+                if _unproven(fields, upper):  # never counted ok, never wrong without proof
                     for key in ("verdict", "depth_verdict"):
                         if fields[key] == "wrong":
                             fields[key] = "disputed"

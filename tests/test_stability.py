@@ -140,9 +140,11 @@ def test_a_wrong_peer_is_judged_wrong_against_the_exact_reference():
     assert (liar.abs_error.where(liar.ref_signed > 0) - 1e-3).abs().max() < 1e-9  # the shift, measured
 
 
-def test_a_wrong_spq_is_never_ok_against_the_fuzz_oracle(monkeypatch):
-    """spq's answers on a non-polytope pair shifted down by 1 mm: below the oracle's lower bound of the
-    signed distance, so 'wrong' (not merely disputed), whichever way the pose was settled."""
+@pytest.mark.parametrize("shift", [-1e-3, 1e-3])
+def test_a_wrong_spq_is_judged_wrong_against_the_fuzz_oracle(monkeypatch, shift):
+    """spq's answers on a non-polytope pair (separated poses) shifted by 1 mm: below the oracle's lower
+    bound of the signed distance, or above the distance of two points of the bodies (the support points
+    along the oracle's or spq's normal), so 'wrong', not merely disputed, whichever way it was settled."""
     from harness import stability as st
     from harness.engines import available_engines
     from harness.fuzz import judge
@@ -153,12 +155,12 @@ def test_a_wrong_spq_is_never_ok_against_the_fuzz_oracle(monkeypatch):
     def shifted(*args, **kwargs):
         out = true_outputs(*args, **kwargs)
         for o in out.values():
-            o[:, OUT_DISTANCE] -= 1e-3
+            o[:, OUT_DISTANCE] += shift
         return out
 
     j = st.GENERATED_SCHEDULE.index("stp-min-R")
     honest = pd.DataFrame(st.draw_rows(0, j, (0, 1, 2), available_engines(["spq"])))
-    assert (honest.verdict == "ok").all(), honest.to_string()
+    assert (honest.verdict == "ok").all() and (honest.ref_signed > 0).all(), honest.to_string()
     monkeypatch.setattr(judge, "spq_outputs", shifted)
     rows = pd.DataFrame(st.draw_rows(0, j, (0, 1, 2), available_engines(["spq"])))
     assert set(rows.reference) <= {"bracket", "oracle", "dense oracle"}
