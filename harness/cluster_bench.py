@@ -9,7 +9,8 @@ runs hold the job alone; then each round times the job on 1 worker, then on N, a
 rounds is kept, so that a busy spell of a shared machine falls on both. Printed per job and cluster:
 the start-up and warm-up seconds, the job's best wall seconds, the CPU seconds its workers (and their
 engines' child processes) spent, the cores that kept busy, the speed-up (1 worker's job seconds over
-N's; "cold": start-up and warm-up included) and whether the results are identical (every table
+N's; "cold": start-up and warm-up included; "by CPU": 1 worker's CPU seconds over the busiest of the N
+workers', what idle cores would give) and whether the results are identical (every table
 exactly; the campaign's state, its timing aside). ``--serial`` adds the same job in this process,
 the serial run of the suites, against which both are compared too.
 
@@ -39,7 +40,7 @@ class Timing:
     start_s: float = float("nan")
     warm_s: float = float("nan")
     job_s: list = field(default_factory=list)  # wall seconds per round
-    cpu_s: list = field(default_factory=list)  # CPU seconds per round (workers and their children)
+    cpu_s: list = field(default_factory=list)  # per round: CPU seconds of each worker (and its children)
     result: object = None
 
     def best(self) -> int:
@@ -61,10 +62,11 @@ def worker_cpu_seconds() -> float:
     return total
 
 
-def _cpu(runner) -> float:
+def _cpu(runner) -> list[float]:
+    """CPU seconds so far of each worker, its engines' processes included."""
     if runner.scheduler is None:
-        return worker_cpu_seconds()
-    return sum(runner.on_each_worker(worker_cpu_seconds).values())
+        return [worker_cpu_seconds()]
+    return list(runner.on_each_worker(worker_cpu_seconds).values())
 
 
 # ------------------------------------------------------------------------------------------ the jobs
@@ -185,7 +187,7 @@ def measure(job, workers: int, repeats: int, serial: bool, say) -> list[Timing]:
                 c0, t0 = _cpu(runner), time.perf_counter()
                 t.result = job.run(runner)
                 t.job_s.append(time.perf_counter() - t0)
-                t.cpu_s.append(_cpu(runner) - c0)
+                t.cpu_s.append([c - b for c, b in zip(_cpu(runner), c0)])
             say(f"  round {r + 1}: " + ", ".join(f"{t.where} {t.job_s[-1]:.1f} s" for t in timings)
                 + f"; load average {os.getloadavg()[0]:.2f}")
     return timings
@@ -196,11 +198,12 @@ def rows(job, timings: list[Timing]) -> pd.DataFrame:
     out = []
     for t in timings:
         b, b1 = t.best(), one.best()
-        job_s, cpu_s = t.job_s[b], t.cpu_s[b]
+        job_s, cpu_s = t.job_s[b], sum(t.cpu_s[b])
         out.append({"job": job.name, "where": t.where, "workers": t.workers, "start_s": round(t.start_s, 1),
                     "warm_up_s": round(t.warm_s, 1), "job_s": round(job_s, 2), "job_cpu_s": round(cpu_s, 1),
                     "cores_busy": round(cpu_s / job_s, 2),
                     "speedup": round(one.job_s[b1] / job_s, 2),
+                    "speedup_by_cpu": round(sum(one.cpu_s[b1]) / max(t.cpu_s[b]), 2),
                     "speedup_cold": round((one.start_s + one.warm_s + one.job_s[b1])
                                           / (t.start_s + t.warm_s + job_s), 2),
                     "identical": "yes" if job.same(one.result, t.result) else "NO"})
@@ -241,7 +244,9 @@ def main(argv=None) -> int:
         say("\n" + pd.concat(tables, ignore_index=True).to_string(index=False))
     say("\nspeedup: the 1-worker job's best wall seconds over this row's (warm workers); speedup_cold: with the "
         "cluster's start-up and warm-up counted; cores_busy: job CPU seconds (workers and their engine "
-        "processes) over wall seconds; identical: results equal to the 1-worker run's")
+        "processes) over wall seconds; speedup_by_cpu: the 1-worker job's CPU seconds over the busiest worker's "
+        "here, the speed-up on idle cores if a task costs the same CPU wherever it runs (a shared machine's "
+        "load lowers speedup, much less this); identical: results equal to the 1-worker run's")
     return 0
 
 
