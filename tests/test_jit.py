@@ -59,3 +59,52 @@ def test_an_unsigned_index_reads_the_same_element_without_the_negative_index_wra
         assert _read_unsigned(a, i) == _read_signed(a, i) == a[3 * i + 1]
     assert _negative_index_tests(_read_signed) > 0  # the control: a signed index is wrapped
     assert _negative_index_tests(_read_unsigned) == 0
+
+
+# ------------------------------------------------------------------------- the compiled cache
+
+_KERNEL_A = '''from pkg.kernels.jit import kernel
+
+
+@kernel(inline="always")
+def value():
+    return {value}
+'''
+_KERNEL_B = '''from pkg.kernels.jit import kernel
+from pkg.kernels.a import value
+
+
+@kernel
+def twice():
+    return 2.0 * value()
+'''
+_RUN = "from pkg.kernels.b import twice; print(twice(), sum(twice.stats.cache_hits.values()))"
+
+
+def test_a_cached_kernel_is_compiled_anew_when_a_kernel_it_inlines_changes(tmp_path):
+    # numba stamps b's cache with b.py alone: without spq.kernels.jit's digest of every kernel file,
+    # editing a.py (inlined into b) left b's old machine code running from the cache
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import spq.kernels.jit as jit
+
+    kernels = tmp_path / "pkg" / "kernels"
+    kernels.mkdir(parents=True)
+    (tmp_path / "pkg" / "__init__.py").write_text("")
+    (kernels / "__init__.py").write_text("")
+    shutil.copy(Path(jit.__file__), kernels / "jit.py")
+    (kernels / "b.py").write_text(_KERNEL_B)
+
+    def run(value: float) -> tuple[float, int]:
+        (kernels / "a.py").write_text(_KERNEL_A.format(value=value))
+        out = subprocess.run([sys.executable, "-c", _RUN], cwd=tmp_path, capture_output=True, text=True,
+                             check=True).stdout.split()
+        return float(out[0]), int(out[1])
+
+    assert run(1.0) == (2.0, 0)  # compiled and cached
+    assert run(1.0) == (2.0, 1)  # from the cache
+    assert run(5.0) == (10.0, 0)  # a.py changed: compiled anew, not the stale 2.0
+    assert run(5.0) == (10.0, 1)

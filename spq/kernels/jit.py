@@ -18,9 +18,70 @@ Inlining a large kernel saves its call (a dozen arrays passed) but copies its co
 point that reaches it, and each copy is compiled again. ``inline="hot"`` inlines a kernel only into
 the entry points marked ``hot=True`` (a robot scene's all-pairs loop, where the calls' cost shows);
 everywhere else it stays a call, which keeps the other entry points' compile time down.
+
+numba stamps a cached function with a hash of its own file only, read when the cache is written. A
+kernel that inlines (or calls, compiled into one module) a kernel from another file kept its old
+machine code after that file changed, and a process still running old code stamped what it wrote
+with the new file's hash. So every kernel's cache here is stamped with one digest of all the
+kernels' sources, taken once at import (:data:`KERNELS_DIGEST`): any change to any kernel file, or a
+process from before it, makes every cached kernel stale and compiled anew.
 """
 
+import hashlib
+from pathlib import Path
+
 from numba import njit
+
+KERNELS_DIR = Path(__file__).resolve().parent
+
+
+def _sources_digest(folder: Path) -> str:
+    """sha256 over the names and contents of the folder's *.py files (the kernels import nothing else)."""
+    h = hashlib.sha256()
+    for path in sorted(folder.glob("*.py")):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+KERNELS_DIGEST = _sources_digest(KERNELS_DIR)
+
+
+def _install_cache_stamp() -> None:
+    """Put locators stamping with KERNELS_DIGEST ahead of numba's own, for files in KERNELS_DIR only:
+    the same cache folders (NUMBA_CACHE_DIR, __pycache__, then the user-wide one) as numba's."""
+    try:
+        from numba.core import caching
+    except ImportError:  # a numba without this module: its own per-file stamps stay
+        return
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    bases = [getattr(caching, name, None) for name in
+             ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")]
+    if impl is None or not isinstance(getattr(impl, "_locator_classes", None), list) or None in bases:
+        return
+    if any(getattr(c, "_spq_kernels", False) for c in impl._locator_classes):
+        return
+
+    class _KernelsStamp:
+        _spq_kernels = True
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            try:
+                if Path(py_file).resolve().parent != KERNELS_DIR:
+                    return None
+            except OSError:
+                return None
+            return super().from_function(py_func, py_file)
+
+        def get_source_stamp(self):
+            return KERNELS_DIGEST
+
+    ours = [type(f"Kernels{base.__name__}", (_KernelsStamp, base), {}) for base in bases]
+    impl._locator_classes[:0] = ours
+
+
+_install_cache_stamp()
 
 _HOT = "_spq_hot_kernel"
 
