@@ -384,17 +384,24 @@ def _plane_of(work, a, b, c, c0, c1, c2):
     outside): PLANE_SLIVER if it is a sliver, PLANE_INWARD if it faces the interior point
     c = (c0, c1, c2)."""
     ra, rb, rc = _row(a), _row(b), _row(c)
-    u0, u1, u2 = work[rb, 0] - work[ra, 0], work[rb, 1] - work[ra, 1], work[rb, 2] - work[ra, 2]
-    v0, v1, v2 = work[rc, 0] - work[ra, 0], work[rc, 1] - work[ra, 1], work[rc, 2] - work[ra, 2]
+    ab = (work[rb, 0] - work[ra, 0]) ** 2 + (work[rb, 1] - work[ra, 1]) ** 2 + (work[rb, 2] - work[ra, 2]) ** 2
+    bc = (work[rc, 0] - work[rb, 0]) ** 2 + (work[rc, 1] - work[rb, 1]) ** 2 + (work[rc, 2] - work[rb, 2]) ** 2
+    ca = (work[ra, 0] - work[rc, 0]) ** 2 + (work[ra, 1] - work[rc, 1]) ** 2 + (work[ra, 2] - work[rc, 2]) ** 2
+    # The normal from the two sides at the largest angle (opposite the longest side), whose sine
+    # bounds its rounding error, about eps / sine: a needle (a new support point 1e-9 from a vertex,
+    # near-duplicate hull points) has a right angle there and a well-defined plane, as its short side,
+    # a difference of nearby floats, is exact. Only a flat triangle, its largest angle near pi, is a sliver.
+    o, p, q = ra, rb, rc  # corner o, sides o -> p and o -> q, counter-clockwise
+    if ab >= bc and ab >= ca:
+        o, p, q = rc, ra, rb
+    elif ca >= bc:
+        o, p, q = rb, rc, ra
+    u0, u1, u2 = work[p, 0] - work[o, 0], work[p, 1] - work[o, 1], work[p, 2] - work[o, 2]
+    v0, v1, v2 = work[q, 0] - work[o, 0], work[q, 1] - work[o, 1], work[q, 2] - work[o, 2]
     n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
     nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    uu = u0 * u0 + u1 * u1 + u2 * u2
-    vv = v0 * v0 + v1 * v1 + v2 * v2
-    ww = (v0 - u0) ** 2 + (v1 - u1) ** 2 + (v2 - u2) ** 2
-    # |n| = (product of two sides) x (sine of their angle); the largest angle's sine bounds the
-    # normal's rounding error, about eps / sine
-    longest = max(uu * vv, uu * ww, vv * ww)
-    if not (nn * nn > SLIVER_SIN * SLIVER_SIN * longest):
+    sides = (u0 * u0 + u1 * u1 + u2 * u2) * (v0 * v0 + v1 * v1 + v2 * v2)
+    if not (nn * nn > SLIVER_SIN * SLIVER_SIN * sides):
         return PLANE_SLIVER, 0.0, 0.0, 0.0, 0.0
     n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
     off = (n0 * (work[ra, 0] + work[rb, 0] + work[rc, 0]) + n1 * (work[ra, 1] + work[rb, 1] + work[rc, 1])
