@@ -411,11 +411,14 @@ def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, wa
 # ------------------------------------------------------------------------------------------
 @kernel(inline="always")
 def _combine(P, lam, k, out, offset):
+    """out[offset:offset + 3] = the point of weights lam[:k] on P[:k], as P[0] + sum lam_i (P_i - P[0]):
+    weights that miss a sum of 1 by rounding (a needle simplex's, 1e-13) then still give a point of the
+    simplex, where sum lam_i P_i would be scaled towards the frame's origin, out of the body."""
     for c in range(3):
         s = 0.0
-        for i in range(k):
-            s += lam[i] * P[i, c]
-        out[offset + c] = s
+        for i in range(1, k):
+            s += lam[i] * (P[i, c] - P[0, c])
+        out[offset + c] = P[0, c] + s
 
 
 @kernel
@@ -527,7 +530,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
 # passing nine arrays through the call cost 30 to 80 cycles of the 800 of a cold JVRC-1 query that the
 # hulls' simplex settles at once. Elsewhere the call stays, to keep the compiled code (and compile
 # time) small.
-descend_inline = kernel(inline="hot")(descend.py_func)
+descend_inline = kernel(inline="hot")(getattr(descend, "py_func", descend))  # plain with NUMBA_DISABLE_JIT
 
 
 @kernel

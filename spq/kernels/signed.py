@@ -35,6 +35,7 @@ from spq.kernels.gjk import (
     OVERLAPPING,
     SEPARATED,
     TOUCHING,
+    _combine,
     minkowski_support,
 )
 from spq.kernels.jit import kernel
@@ -73,14 +74,8 @@ def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
     """The descent's closest points (k simplex points, weights lam) as a signed core result: distance
     |p_B - p_A| (its upper bound), lower bound ``lower``, normal along p_B - p_A, or n where they
     coincide. status FAILED is kept; otherwise it follows the distance."""
-    for c in range(3):
-        sa = 0.0
-        sb = 0.0
-        for i in range(k):
-            sa += lam[i] * PA[i, c]
-            sb += lam[i] * PB[i, c]
-        out[OUT_POINT_A + c] = sa
-        out[OUT_POINT_B + c] = sb
+    _combine(PA, lam, k, out, OUT_POINT_A)
+    _combine(PB, lam, k, out, OUT_POINT_B)
     dx = out[OUT_POINT_B] - out[OUT_POINT_A]
     dy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
     dz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
