@@ -7,8 +7,6 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from harness.suites import Figure, Output, frame_lines
 
 FIXTURES = Path("tests/fixtures/fuzz")  # where the test suite replays reproducers from
@@ -127,10 +125,10 @@ def _notes(config, state, cc) -> str:
 
 def heatmap(table, path) -> None:
     """Families x engines, colour: share of queries wrong, failed or disputed (log scale), counts written."""
-    from harness.report.charts import pyplot
+    from harness.report.charts import failure_heatmap, pyplot
 
-    plt = pyplot()
     if not len(table):
+        plt = pyplot()
         fig, ax = plt.subplots(figsize=(4, 2))
         ax.text(0.5, 0.5, "no case ran", ha="center")
         fig.savefig(path, dpi=110)
@@ -138,24 +136,5 @@ def heatmap(table, path) -> None:
         return
     t = table.assign(col=table.engine + " " + table["mode"], bad=table.wrong + table.failed + table.disputed)
     grid = t.pivot_table(index="family", columns="col", values=["bad", "queries"], aggfunc="sum")
-    bad, queries = grid["bad"], grid["queries"]
-    share = (bad / queries).to_numpy(dtype=float)
-    fig, ax = plt.subplots(figsize=(1.3 * len(bad.columns) + 3, 0.5 * len(bad.index) + 2))
-    shown = np.where(np.isfinite(share), np.log10(np.maximum(share, 1e-7)), np.nan)
-    im = ax.imshow(shown, cmap="Reds", vmin=-7, vmax=0, aspect="auto")
-    ax.set_xticks(range(len(bad.columns)), bad.columns, rotation=30, ha="right")
-    ax.set_yticks(range(len(bad.index)), bad.index)
-    for i in range(len(bad.index)):
-        for j in range(len(bad.columns)):
-            q = queries.iat[i, j]
-            if np.isfinite(q) and q > 0:
-                dark = np.isfinite(shown[i, j]) and shown[i, j] > -2.5
-                ax.text(j, i, f"{int(bad.iat[i, j])}/{int(q)}", ha="center", va="center", fontsize=7,
-                        color="white" if dark else "black")
-            else:
-                ax.text(j, i, "n/a", ha="center", va="center", fontsize=7, color="grey")
-    fig.colorbar(im, ax=ax, label="log10 share of queries wrong, failed or disputed")
-    ax.set_title("Where each engine fails (fuzz campaign)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    failure_heatmap(grid["bad"], grid["queries"], path, "Where each engine fails (fuzz campaign)",
+                    "log10 share of queries wrong, failed or disputed", floor=-7.0)

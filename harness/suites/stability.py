@@ -165,41 +165,16 @@ def generated_notes(generated) -> str:
 def heatmap(grid, path) -> None:
     """Families (rows: hand-built, a line, generated) x engines, colour: log10 share of bad cases, each
     cell's bad/judged written in it (harness.stability.failure_grid)."""
-    import numpy as np
+    from harness.report.charts import failure_heatmap
 
-    from harness.report.charts import pyplot
-
-    plt = pyplot()
     families = list(dict.fromkeys(grid.family))
     engines = list(dict.fromkeys(grid.engine))
-    n = grid.pivot_table(index="family", columns="engine", values="n", aggfunc="sum").reindex(index=families,
-                                                                                              columns=engines)
-    bad = grid.pivot_table(index="family", columns="engine", values="bad", aggfunc="sum").reindex(index=families,
-                                                                                                  columns=engines)
-    share = (bad / n).to_numpy(dtype=float)
-    floor = -4.0  # log10 share: below 1 in 10,000 is drawn as none
-    shown = np.where(share > 0, np.log10(np.maximum(share, 10 ** floor)), np.nan)
-    shown = np.where(np.isfinite(share) & (share == 0), floor - 1, shown)
-    fig, ax = plt.subplots(figsize=(1.25 * len(engines) + 3.5, 0.32 * len(families) + 2.2))
-    cmap = plt.get_cmap("Reds").with_extremes(under="white", bad="#e8e8e8")  # none; n/a
-    im = ax.imshow(np.ma.masked_invalid(shown), cmap=cmap, vmin=floor, vmax=0.0, aspect="auto")
-    ax.set_xticks(range(len(engines)), engines, rotation=20, ha="right")
-    ax.set_yticks(range(len(families)), families, fontsize=8)
-    for i in range(len(families)):
-        for j in range(len(engines)):
-            q = n.iat[i, j]
-            if np.isfinite(q) and q > 0:
-                dark = np.isfinite(shown[i, j]) and shown[i, j] > -1.5
-                ax.text(j, i, f"{int(bad.iat[i, j])}/{int(q)}", ha="center", va="center", fontsize=6.5,
-                        color="white" if dark else "black")
-            else:
-                ax.text(j, i, "n/a", ha="center", va="center", fontsize=6.5, color="grey")
+
+    def count(column):
+        return grid.pivot_table(index="family", columns="engine", values=column,
+                                aggfunc="sum").reindex(index=families, columns=engines)
+
     sources = grid.drop_duplicates("family").set_index("family").source.reindex(families)
-    split = int((sources == "hand-built").sum())
-    if 0 < split < len(families):
-        ax.axhline(split - 0.5, color="black", lw=1.2)
-    fig.colorbar(im, ax=ax, label="log10 share of cases wrong or failed", extend="min")
-    ax.set_title("Where each engine fails: the stability suite, cases wrong or failed / judged")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    failure_heatmap(count("bad"), count("n"), path,
+                    "Where each engine fails: the stability suite, cases wrong or failed / judged",
+                    "log10 share of cases wrong or failed", line_after=int((sources == "hand-built").sum()))
