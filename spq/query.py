@@ -16,6 +16,7 @@ unsigned distance.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
@@ -149,6 +150,18 @@ _F64 = np.dtype(np.float64)
 _C44_STRIDES = (32, 8)
 
 
+_SCRATCH = threading.local()
+
+
+def _thread_scratch() -> tuple:
+    """This thread's scratch for one query (kb.query_scratch), made once: a call then allocates only
+    its result."""
+    scratch = getattr(_SCRATCH, "arrays", None)
+    if scratch is None:
+        scratch = _SCRATCH.arrays = kb.query_scratch()
+    return scratch
+
+
 def _as_matrix(pose) -> np.ndarray:
     """A 4x4 C-contiguous float64 pose (validity is checked in the kernel); cheap when it already is."""
     if type(pose) is np.ndarray and pose.shape == (4, 4) and pose.dtype is _F64 and pose.strides == _C44_STRIDES:
@@ -194,7 +207,7 @@ class Pair:
         """Distance between A at pose_a and B at pose_b (4x4 world poses)."""
         out = np.empty(OUT_SIZE)
         code = kb.query_one(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats,
-                            _as_matrix(pose_a), _as_matrix(pose_b), out)
+                            _as_matrix(pose_a), _as_matrix(pose_b), out, *_thread_scratch())
         if code:
             _raise_pose_error(code)
         return DistanceResult(out)
@@ -242,7 +255,7 @@ def distance(A: Shape, pose_a, B: Shape, pose_b, tol: float = DEFAULT_TOL_ABS, r
     Overlapping shapes give distance 0 and status 'overlapping'; with signed=True, distance = -depth
     from the expanding polytope (EPA), with witness points and bounds certified the same way (see
     the module docstring). A query that cannot close its bounds within max_iter GJK steps (and
-    8 * max_iter EPA expansions, at most 1000) returns status 'failed' with the bounds reached. Raises ValueError for bad poses or tolerances.
+    32 * max_iter EPA expansions, at most 4072) returns status 'failed' with the bounds reached. Raises ValueError for bad poses or tolerances.
     """
     return Pair(A, B, tol, rel_tol, max_iter, signed).distance(pose_a, pose_b)
 

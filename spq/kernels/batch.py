@@ -115,9 +115,11 @@ def _to_world(TA, out):
         out[OUT_NORMAL + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z
 
 
-@kernel(allocates=True)
-def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
+@kernel
+def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out, R, t, work, iwork):
     """One query with world-frame results in out; warm-start state in ints/floats is updated.
+    R, t, work, iwork: scratch (see :func:`query_scratch`), which the caller keeps: a signed query's
+    polytope needs megabytes, too many to allocate per call.
 
     Returns a POSE_* code (> 0: nothing computed) or POSE_OK."""
     code = check_pose(TA)
@@ -126,16 +128,8 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    _posed_query_call(fA, iA, fB, iB, ints, floats, TA, TB, np.empty((3, 3)), np.empty(3), np.empty((WORK_ROWS, 4)),
-                      np.empty(IWORK_SIZE, dtype=np.int64), out)
-    return POSE_OK
-
-
-@kernel
-def _posed_query_call(fA, iA, fB, iB, ints, floats, TA, TB, R, t, work, iwork, out):
-    """posed_query (coherent) as a call, outside query_one's reference counting: gjk_query, inlined
-    into it, holds views (hull_core's) that a kernel with NRT would release without having taken."""
     posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, R, t, work, iwork, out)
+    return POSE_OK
 
 
 def query_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

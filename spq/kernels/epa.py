@@ -39,6 +39,7 @@ import math
 from spq.kernels.epa_layout import (
     EPA_ADJ,
     EPA_ALIVE,
+    EPA_BEST,
     EPA_CLOCK,
     EPA_CORNERS,
     EPA_DEAD,
@@ -57,6 +58,17 @@ from spq.kernels.epa_layout import (
     EPA_STAMP,
     EPA_TMP,
     EPA_W,
+)
+from spq.kernels.epa_caps import (
+    certified,
+    certified_offset,
+    clear_best,
+    clear_sphere,
+    deepest_normal,
+    has_best,
+    keep_best,
+    set_certified,
+    support_sphere,
 )
 from spq.kernels.gjk import (
     EPA_IOFF,
@@ -88,10 +100,11 @@ WALK_STEPS = 16  # steps across coplanar neighbours to the face holding the orig
 # (128 by default), at most EPA_MAX_STEPS. A deep overlap of round bodies (STP-BVs with R near its
 # minimum, superellipsoids, hulls of hundreds of points on a sphere) has a depth that varies little
 # with the normal, so the polytope must be refined over a wide cap before its least offset comes
-# within 1e-10 of the depth: fuzzed 'contained' poses took 200 to 900 expansions (128 closed about a
-# fifth of them).
+# within 1e-10 of the depth: fuzzed 'contained' poses took 200 to 2000 expansions, and two nearly
+# concentric STP-BVs more than 16,000. The sphere caps (spq.kernels.epa_caps) certify most of such a
+# polytope; what is left, along the regions' edges, took those about 3000.
 EPA_MAX_STEPS = EPA_MAX_VERTICES - 24
-EPA_STEPS_PER_ITERATION = 8
+EPA_STEPS_PER_ITERATION = 32
 
 # why the last run stopped, kept in the scratch (work[EPA_ROW + EPA_TMP, 3]) for diagnostics
 STOP_CLOSED, STOP_ITERATIONS, STOP_VERTICES, STOP_NO_PROGRESS = 1, 2, 3, 4
@@ -429,6 +442,7 @@ def _new_face(work, iw, top, a, b, c, n0, n1, n2, off):
     _set_stamp(iw, f, 0)
     row = EPA_ROW + EPA_PLANES + f
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
+    set_certified(work, f, certified_offset(work, a, b, c, n0, n1, n2, off))
     return f, top
 
 
@@ -588,11 +602,11 @@ def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
 
 @kernel(inline="always")
 def _least_face(work, iw, top):
-    """The live face of least offset, and that offset."""
+    """The live face of least certified offset (spq.kernels.epa_caps), and that offset."""
     best, bf = math.inf, -1
     for f in range(top):
         if _alive(iw, f):
-            o = work[EPA_ROW + EPA_PLANES + f, 3]
+            o = certified(work, f)
             if o < best:
                 best, bf = o, f
     return bf, best
@@ -651,6 +665,30 @@ def _witness(work, iw, f, out):
         out[OUT_POINT_B + c] = (la * work[EPA_ROW + EPA_PB + ia, c] + lb * work[EPA_ROW + EPA_PB + ib, c]
                                 + lc * work[EPA_ROW + EPA_PB + ic, c])
     out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2
+
+
+@kernel
+def _best_witness(work, out):
+    """Witness points and normal of the exact deepest support kept by _exact_deepest."""
+    for c in range(3):
+        out[OUT_POINT_A + c] = work[EPA_ROW + EPA_BEST, c]
+        out[OUT_POINT_B + c] = work[EPA_ROW + EPA_BEST + 1, c]
+        out[OUT_NORMAL + c] = work[EPA_ROW + EPA_BEST + 2, c]
+
+
+@kernel
+def _exact_deepest(kA, fA, iA, kB, fB, iB, R, t, i, lower, warm, work):
+    """The bound sd >= lower, improved by the support along vertex i's deepest sphere normal u* if
+    its cap holds u* and its depth there beats the bound (spq.kernels.epa_caps); that support is
+    then kept as the exact witness. Returns the bound."""
+    ok, v0, v1, v2, depth = deepest_normal(work, i)
+    if not ok or not -depth > lower:
+        return lower
+    h = _support_inline(kA, fA, iA, kB, fB, iB, R, t, v0, v1, v2, warm, work)
+    if -h > lower:
+        keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], v0, v1, v2)
+        return -h
+    return lower
 
 
 @kernel
@@ -723,6 +761,9 @@ def epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw
         if nv < 4:
             _flat_normal(work, nv, out)
             return nv, 0, 0.0, 0.0, 0.0, lower
+    for i in range(nv):  # the simplex's directions are not kept: no caps
+        clear_sphere(work, i)
+    clear_best(work)
     c0 = c1 = c2 = 0.0
     for i in range(4):
         c0 += 0.25 * work[_row(i), 0]
@@ -784,24 +825,30 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
         size = max(size, abs(w[0]), abs(w[1]), abs(w[2]))
         eps = VISIBLE_REL * size
         # (a point above the face's plane cannot be a vertex already: the polytope is convex)
-        if h - off <= eps:
+        if h - work[row, 3] <= eps:
             # nothing of D beyond this face: the bounds are as good as this precision allows
             closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
             stop = STOP_NO_PROGRESS
             break
         _keep_support(work, iw, warm, nv)
+        support_sphere(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm[0], warm[1],
+                       work, nv)
         iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
         stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
         if stop != 0:
             break
         nv += 1
+        lower = _exact_deepest(kA, fA, iA, kB, fB, iB, R, t, nv - 1, lower, warm, work)
     work[EPA_ROW + EPA_TMP, 3] = STOP_CLOSED if closed else stop
     if off < 0.0 and not near:
         row = EPA_ROW + EPA_PLANES + f
         out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = work[row, 0], work[row, 1], work[row, 2]
         return EPA_OUTSIDE, closed, upper, lower, it, nv, top
     if not near:
-        _witness(work, iw, f, out)
+        if has_best(work) and certified(work, f) > work[EPA_ROW + EPA_PLANES + f, 3]:
+            _best_witness(work, out)  # the face's own points would miss the certified offset
+        else:
+            _witness(work, iw, f, out)
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper
     out[OUT_LOWER] = min(lower, upper)  # rounding may cross them by an ulp

@@ -7,7 +7,10 @@ gjk.EPA_ROW and ``iwork`` entries from gjk.EPA_IOFF.
 Float rows (4 columns): the polytope's vertices w = a - b (x, y, z), their points of A and of B,
 then one plane per face slot (unit normal, offset), the planes of an expansion's new faces before
 they are made, then three rows of support scratch, then five for the nearest point of a face to an origin outside P
-(its corners, weights, and a row of scratch).
+(its corners, weights, and a row of scratch), then two per vertex for the sphere D's boundary follows
+around it (centre, radius; direction, cosine of the cap's half-angle: spq.kernels.epa_caps), one
+per face slot for its certified offset (column 0), and three for the best exact witness (a, b,
+normal; column 3 of the first: 1 once set).
 Ints: the count of free face slots, the count of expansions, then per face its corners (3), its neighbours (3: across the
 edge from corner k to corner k + 1), an alive flag and a visit stamp; the free slots; the horizon
 of an expansion (4 per edge: from, to, outside face, that face's edge); the walk's stack (3 per
@@ -15,7 +18,7 @@ entry: face, next edge, edges left); the faces an expansion removes; per vertex 
 features of A and of B it came from (a polytope's vertex, an STP-BV's patch).
 """
 
-EPA_MAX_VERTICES = 1024  # support points: the initial tetrahedron, then one per EPA step (see epa.EPA_MAX_STEPS)
+EPA_MAX_VERTICES = 4096  # support points: the initial tetrahedron, then one per EPA step (see epa.EPA_MAX_STEPS)
 EPA_MAX_FACES = 2 * EPA_MAX_VERTICES  # a closed triangulated polytope has 2V - 4 faces
 
 # float rows
@@ -24,7 +27,10 @@ EPA_PLANES = 3 * EPA_MAX_VERTICES
 EPA_FAN = EPA_PLANES + EPA_MAX_FACES
 EPA_TMP = EPA_FAN + EPA_MAX_FACES
 EPA_NEAR = EPA_TMP + 3  # a face's corners (3 rows), the weights of its point nearest the origin, scratch
-EPA_FLOAT_ROWS = EPA_NEAR + 5
+EPA_SPHERES = EPA_NEAR + 5
+EPA_CERTIFIED = EPA_SPHERES + 2 * EPA_MAX_VERTICES
+EPA_BEST = EPA_CERTIFIED + EPA_MAX_FACES
+EPA_FLOAT_ROWS = EPA_BEST + 3
 
 # ints
 EPA_NFREE = 0

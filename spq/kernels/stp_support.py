@@ -63,6 +63,12 @@ def _offsets(ix):
 
 
 @kernel(inline="always")
+def plane_offset(ix):
+    """Where the record planes start in fdata."""
+    return F_VERTICES + 3 * (ix[IDX_V] + ix[IDX_F]) + 7 * ix[IDX_E]
+
+
+@kernel(inline="always")
 def _table_offset(ix):
     """Where the hull-vertex table starts in fdata."""
     return F_VERTICES + 3 * (ix[IDX_V] + ix[IDX_F]) + 7 * ix[IDX_E] + 4 * ix[IDX_NREC]
