@@ -465,7 +465,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--budget", type=float, help="seconds of this run (with or without --queries)")
     p.add_argument("--queries", type=float, help="stop once the campaign holds this many spq queries (e.g. 1e7)")
-    p.add_argument("--families", nargs="+", help="families to draw from (default: all; see docs/fuzz.md)")
+    p.add_argument("--families", nargs="+", help="families to draw from (default: all; see docs/commands/fuzz.md)")
     p.add_argument("--poses", type=int, default=2000, help="pose pairs per case (default 2000)")
     p.add_argument("--sample", type=float, default=2e-4,
                    help="share of spq's queries checked by the reference whatever the cheap checks say")

@@ -17,7 +17,7 @@ campaign's rounds). Three ways to run them:
   thread (threadpoolctl), so that N workers keep N cores busy, as Dask's workers do by default;
 - ``scheduler="local"``: a Dask ``LocalCluster`` of ``workers`` single-threaded processes on this
   machine, set up as LOCAL_CLUSTER_CONFIG says; ``scheduler="tcp://HOST:8786"``: the workers of an
-  existing Dask cluster (see the README). Tasks are submitted in order, two per worker thread at
+  existing Dask cluster (see docs/clusters.md). Tasks are submitted in order, two per worker thread at
   most, so that a longest-first order holds.
 
 Dask is optional (``pip install "dask[distributed]"``) and imported only for a scheduler. Timing
@@ -329,7 +329,7 @@ def warn_about_malloc_trim(client) -> None:
     if set_on:
         warnings.warn(f"{len(set_on)} Dask worker(s) run with MALLOC_TRIM_THRESHOLD_ set (Dask's default), "
                       "which costs the crosscheck and the fuzz campaign some 40 % more CPU; start the workers "
-                      f"with {MALLOC_HINT} (see the README, 'All cores and clusters')", stacklevel=3)
+                      f"with {MALLOC_HINT} (see docs/clusters.md)", stacklevel=3)
 
 
 def check_may_start_children(what: str) -> None:
@@ -338,7 +338,7 @@ def check_may_start_children(what: str) -> None:
     if mp.current_process().daemon:
         raise RuntimeError(f"{what} starts child processes for the native engines, which a daemonic process "
                            "cannot: start the Dask workers with DASK_DISTRIBUTED__WORKER__DAEMON=False "
-                           "(see the README, 'On a cluster')")
+                           "(see docs/clusters.md)")
 
 
 _CACHE: dict = {}  # key -> (value, close or None)

@@ -51,7 +51,7 @@ def check_section(out: Path) -> Section:
     metrics = pd.DataFrame(doc["metrics"])
     judged = (out / "check_diff.csv").exists()
     paragraphs = [
-        f"spq check is the gate a CI runs (README: 'spq check in a CI'): {len(metrics)} metrics over "
+        f"spq check is the gate a CI runs (docs/commands/check.md): {len(metrics)} metrics over "
         f"{metrics.engine.nunique()} engines at fixed seeds, in {doc['meta']['seconds']:.0f} s"
         + (", judged against the committed baseline (.ci/check-baseline.json): accuracy regressions fail, speed "
            "ratios are advisory here." if judged else "; no baseline compared in this run.")]

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 COUNT_KEYS = ("queries", "wrong", "failed", "referenced", "disputed")
-DEFAULT_PEERS = ("coal", "mujoco", "bullet")  # python-fcl hangs on some poses (see README): --peers fcl adds it
+DEFAULT_PEERS = ("coal", "mujoco", "bullet")  # python-fcl hangs on some poses (see docs/commands/fuzz.md): --peers fcl adds it
 
 
 @dataclass
