@@ -265,7 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("report", help="run every suite and write reports/index.html and REPORT.md")
-    p.add_argument("--quick", action="store_true", help="small settings (a few minutes; what CI runs)")
+    p.add_argument("--quick", action="store_true", help="small settings (a few minutes; what the report test runs)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.set_defaults(func=cmd_report)
@@ -353,7 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("stability", help="every engine on cases where distance methods are known to fail")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--engines", nargs="+", help="engine names (default: spq fcl coal bullet bullet-margin)")
+    p.add_argument("--engines", nargs="+", help="engine names (default: spq fcl coal bullet bullet-margin mujoco)")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quick", action="store_true", help="one pose per case and fewer sweeps (seconds)")
     p.add_argument("--generated-cases", type=int, default=10_000, metavar="N",
