@@ -40,6 +40,7 @@ from spq.kernels.epa_layout import (
     EPA_ADJ,
     EPA_ALIVE,
     EPA_BEST,
+    EPA_CAPS,
     EPA_CLOCK,
     EPA_CORNERS,
     EPA_DEAD,
@@ -60,6 +61,7 @@ from spq.kernels.epa_layout import (
     EPA_W,
 )
 from spq.kernels.epa_caps import (
+    can_cap,
     certified,
     certified_offset,
     clear_best,
@@ -105,6 +107,7 @@ WALK_STEPS = 16  # steps across coplanar neighbours to the face holding the orig
 # polytope; what is left, along the regions' edges, took those about 3000.
 EPA_MAX_STEPS = EPA_MAX_VERTICES - 24
 EPA_STEPS_PER_ITERATION = 32
+CAPS_AFTER = 128  # steps of a run before it takes the sphere caps (see epa_run)
 
 # why the last run stopped, kept in the scratch (work[EPA_ROW + EPA_TMP, 3]) for diagnostics
 STOP_CLOSED, STOP_ITERATIONS, STOP_VERTICES, STOP_NO_PROGRESS = 1, 2, 3, 4
@@ -442,7 +445,7 @@ def _new_face(work, iw, top, a, b, c, n0, n1, n2, off):
     _set_stamp(iw, f, 0)
     row = EPA_ROW + EPA_PLANES + f
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
-    set_certified(work, f, certified_offset(work, a, b, c, n0, n1, n2, off))
+    set_certified(work, f, certified_offset(work, a, b, c, n0, n1, n2, off) if iw[EPA_IOFF + EPA_CAPS] else off)
     return f, top
 
 
@@ -452,6 +455,7 @@ def _tetrahedron(work, iw, c0, c1, c2):
     (ok, number of face slots used); not ok if a face is a sliver."""
     iw[EPA_IOFF + EPA_NFREE] = 0
     iw[EPA_IOFF + EPA_CLOCK] = 0
+    iw[EPA_IOFF + EPA_CAPS] = 0  # the simplex's vertices carry none
     top = 0
     for m in range(4):  # the face opposite corner m
         i = 1 if m == 0 else 0
@@ -793,6 +797,12 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
     size = _size(work, nv)
     it = 0
     steps = min(EPA_STEPS_PER_ITERATION * max_iter, EPA_MAX_STEPS)
+    # the caps cost about a fifth of a step: only a run still open after CAPS_AFTER steps takes them
+    # (most close before), and only between bodies that can carry them; every face made without
+    # them has its offset as its certified offset, every vertex no cap
+    cappable = can_cap(kA) and can_cap(kB)
+    caps = False
+    iw[EPA_IOFF + EPA_CAPS] = 0
     closed = False
     stop = STOP_CLOSED
     f, off = _least_face(work, iw, top)
@@ -815,6 +825,9 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
             stop = STOP_ITERATIONS if it >= steps else STOP_VERTICES
             break
         it += 1
+        if cappable and it == CAPS_AFTER + 1:
+            caps = True
+            iw[EPA_IOFF + EPA_CAPS] = 1
         row = EPA_ROW + EPA_PLANES + f
         h = _support_inline(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm, work)
         lower = max(lower, -h)
@@ -831,14 +844,18 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
             stop = STOP_NO_PROGRESS
             break
         _keep_support(work, iw, warm, nv)
-        support_sphere(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm[0], warm[1],
-                       work, nv)
+        if caps:
+            support_sphere(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm[0], warm[1],
+                           work, nv)
+        else:
+            clear_sphere(work, nv)
         iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
         stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
         if stop != 0:
             break
         nv += 1
-        lower = _exact_deepest(kA, fA, iA, kB, fB, iB, R, t, nv - 1, lower, warm, work)
+        if caps:
+            lower = _exact_deepest(kA, fA, iA, kB, fB, iB, R, t, nv - 1, lower, warm, work)
     work[EPA_ROW + EPA_TMP, 3] = STOP_CLOSED if closed else stop
     if off < 0.0 and not near:
         row = EPA_ROW + EPA_PLANES + f

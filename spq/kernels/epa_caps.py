@@ -17,7 +17,9 @@ and above Seg's plane when its lowest point along u, d cos g - sqrt(r^2 - d^2) s
 between n and u), is at least u.C + rho cos alpha. So the face's certified offset (certified_offset)
 is the largest such r, at least d, and the depth is at least the least certified offset.
 
-The EPA expands the face of least certified offset, so it refines P only where no cap certifies it:
+A run takes the caps once it is still open after epa.CAPS_AFTER expansions (they cost about a fifth
+of a step; most runs close before, unchanged), and from then on expands the face of least
+certified offset, so it refines P only where no cap certifies it:
 along the edges of the regions, and around the deepest normal. There the exact support along
 u* = -C / |C| (the deepest normal of the sphere, if its cap holds it) gives the depth's upper bound
 rho - |C| and witness points that meet it exactly (exact_deepest).
@@ -97,6 +99,12 @@ def support_sphere(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, fa, fb, work, i):
     work[row, 3] = ra + rb
     work[row + 1, 0], work[row + 1, 1], work[row + 1, 2] = u0, u1, u2
     work[row + 1, 3] = math.cos(min(alpha_a, alpha_b))
+
+
+@kernel(inline="always")
+def can_cap(kind):
+    """Whether a body of this kind can carry a cap: an STP-BV (its spheres) or a point (a sphere)."""
+    return kind == STP or kind == POINT
 
 
 @kernel(inline="always")

@@ -11,7 +11,7 @@ they are made, then three rows of support scratch, then five for the nearest poi
 around it (centre, radius; direction, cosine of the cap's half-angle: spq.kernels.epa_caps), one
 per face slot for its certified offset (column 0), and three for the best exact witness (a, b,
 normal; column 3 of the first: 1 once set).
-Ints: the count of free face slots, the count of expansions, then per face its corners (3), its neighbours (3: across the
+Ints: the count of free face slots, the count of expansions, whether the run uses sphere caps, then per face its corners (3), its neighbours (3: across the
 edge from corner k to corner k + 1), an alive flag and a visit stamp; the free slots; the horizon
 of an expansion (4 per edge: from, to, outside face, that face's edge); the walk's stack (3 per
 entry: face, next edge, edges left); the faces an expansion removes; per vertex the support
@@ -21,27 +21,36 @@ features of A and of B it came from (a polytope's vertex, an STP-BV's patch).
 EPA_MAX_VERTICES = 4096  # support points: the initial tetrahedron, then one per EPA step (see epa.EPA_MAX_STEPS)
 EPA_MAX_FACES = 2 * EPA_MAX_VERTICES  # a closed triangulated polytope has 2V - 4 faces
 
+# Every block starts PAD bytes (three cache lines) further along the cache's sets than the one before:
+# the blocks' sizes are multiples of 4 KiB, so unpadded their starts would share one set of the L1
+# cache, and an EPA step, which reads a few entries of each block, would evict its own lines.
+PAD_ROWS = 6  # float rows of 32 bytes
+PAD_INTS = 24  # int64 entries
+
 # float rows
-EPA_W, EPA_PA, EPA_PB = 0, EPA_MAX_VERTICES, 2 * EPA_MAX_VERTICES
-EPA_PLANES = 3 * EPA_MAX_VERTICES
-EPA_FAN = EPA_PLANES + EPA_MAX_FACES
-EPA_TMP = EPA_FAN + EPA_MAX_FACES
+EPA_W = 0
+EPA_PA = EPA_W + EPA_MAX_VERTICES + PAD_ROWS
+EPA_PB = EPA_PA + EPA_MAX_VERTICES + PAD_ROWS
+EPA_PLANES = EPA_PB + EPA_MAX_VERTICES + PAD_ROWS
+EPA_FAN = EPA_PLANES + EPA_MAX_FACES + PAD_ROWS
+EPA_TMP = EPA_FAN + EPA_MAX_FACES + PAD_ROWS
 EPA_NEAR = EPA_TMP + 3  # a face's corners (3 rows), the weights of its point nearest the origin, scratch
-EPA_SPHERES = EPA_NEAR + 5
-EPA_CERTIFIED = EPA_SPHERES + 2 * EPA_MAX_VERTICES
-EPA_BEST = EPA_CERTIFIED + EPA_MAX_FACES
+EPA_SPHERES = EPA_NEAR + 5 + PAD_ROWS
+EPA_CERTIFIED = EPA_SPHERES + 2 * EPA_MAX_VERTICES + PAD_ROWS
+EPA_BEST = EPA_CERTIFIED + EPA_MAX_FACES + PAD_ROWS
 EPA_FLOAT_ROWS = EPA_BEST + 3
 
 # ints
 EPA_NFREE = 0
 EPA_CLOCK = 1  # expansions so far: each stamps the faces it visits with its own number
-EPA_CORNERS = 2
-EPA_ADJ = EPA_CORNERS + 3 * EPA_MAX_FACES
-EPA_ALIVE = EPA_ADJ + 3 * EPA_MAX_FACES
-EPA_STAMP = EPA_ALIVE + EPA_MAX_FACES
-EPA_FREE = EPA_STAMP + EPA_MAX_FACES
-EPA_HORIZON = EPA_FREE + EPA_MAX_FACES
-EPA_STACK = EPA_HORIZON + 4 * EPA_MAX_FACES
-EPA_DEAD = EPA_STACK + 3 * EPA_MAX_FACES
-EPA_FEATURES = EPA_DEAD + EPA_MAX_FACES
+EPA_CAPS = 2  # 1 while the run's shapes can carry sphere caps (spq.kernels.epa_caps), else 0
+EPA_CORNERS = 3
+EPA_ADJ = EPA_CORNERS + 3 * EPA_MAX_FACES + PAD_INTS
+EPA_ALIVE = EPA_ADJ + 3 * EPA_MAX_FACES + PAD_INTS
+EPA_STAMP = EPA_ALIVE + EPA_MAX_FACES + PAD_INTS
+EPA_FREE = EPA_STAMP + EPA_MAX_FACES + PAD_INTS
+EPA_HORIZON = EPA_FREE + EPA_MAX_FACES + PAD_INTS
+EPA_STACK = EPA_HORIZON + 4 * EPA_MAX_FACES + PAD_INTS
+EPA_DEAD = EPA_STACK + 3 * EPA_MAX_FACES + PAD_INTS
+EPA_FEATURES = EPA_DEAD + EPA_MAX_FACES + PAD_INTS
 EPA_INT_SIZE = EPA_FEATURES + 2 * EPA_MAX_VERTICES
