@@ -80,7 +80,7 @@ class ContactPath:
         pose = np.eye(4)
         pose[:3, :3] = rotation
         pose[:3, 3] = t_along * self.u
-        return spq.distance(self.A.shape, self.A.offset, self.B.shape, pose @ self.B.offset, signed=True).distance
+        return spq.distance(self.A.shape, self.B.shape, self.A.offset, pose @ self.B.offset, signed=True).distance
 
     def _touch(self, rotation: np.ndarray) -> float:
         lo, hi = -1.0, 1.0

@@ -316,13 +316,13 @@ def penetration(name_a: str, name_b: str, r: float, R: float, depth: float, seed
 
     s = A.bounding_radius() + B.bounding_radius() + float(np.linalg.norm(fit.pose[:3, 3]))
     for _ in range(30):  # secant-free: move along the direction by the signed-distance error (slope ~ n.direction)
-        res = spq.distance(A, pose_a, B, pose_at(s), signed=True)
+        res = spq.distance(A, B, pose_a, pose_at(s), signed=True)
         err = res.distance + depth
         if abs(err) < 1e-6 * depth:
             break
         slope = max(float(res.normal @ direction), 0.2)
         s -= err / slope
-    res = spq.distance(A, pose_a, B, pose_at(s), signed=True)
+    res = spq.distance(A, B, pose_a, pose_at(s), signed=True)
     meshes = (_mesh(A, tolerance), _mesh(B, tolerance))
     return Penetration((name_a, name_b), ("stp", "cse"), meshes, pose_a, pose_at(s), -res.distance, res.point_a,
                        res.point_b, res.normal, res.status, (res.lower_bound, res.upper_bound))

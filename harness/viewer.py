@@ -359,7 +359,7 @@ class PairView:
         import spq
 
         with self.lock:
-            self.result = spq.distance(self.a.shape, self.a.local, self.b.shape, self.pose_b @ self.b.local, signed=True)
+            self.result = spq.distance(self.a.shape, self.b.shape, self.a.local, self.pose_b @ self.b.local, signed=True)
             r = self.result
             points, colours = segments_of(r.point_a[None], r.point_b[None], np.array([r.distance]))
             if self.lines is not None:

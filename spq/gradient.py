@@ -50,7 +50,7 @@ def _translation(pose) -> np.ndarray:
 def distance_gradient(result, pose_a, pose_b) -> tuple[np.ndarray, np.ndarray]:
     """(grad_a, grad_b), each (6,) = (dd/dt, dd/domega) of body A and of body B.
 
-    result: a :class:`spq.DistanceResult` of ``spq.distance(A, pose_a, B, pose_b)`` (or of a Pair).
+    result: a :class:`spq.DistanceResult` of ``spq.distance(A, B, pose_a, pose_b)`` (or of a Pair).
     pose_a, pose_b: the 4x4 world poses used for that query (only their translations enter: the
     rotation pivot). See the module docstring for the frame convention: world-frame translation t
     and world-frame small rotation omega about the body's origin, R <- expm([omega]x) R.

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import threading
+import warnings
 
 import numpy as np
 
@@ -247,17 +248,36 @@ class Pair:
         return BatchDistances(out)
 
 
-def distance(A: Shape, pose_a, B: Shape, pose_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
+def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,
              max_iter: int = DEFAULT_MAX_ITER, signed: bool = False) -> DistanceResult:
     """Distance between convex shape A at pose_a and B at pose_b (4x4 world poses, metres).
+
+    The shapes come first, then their poses, as in :func:`distances` and ``Pair(A, B).distance(pose_a,
+    pose_b)``. The order of spq 0.1, ``distance(A, pose_a, B, pose_b)``, still works for this release,
+    with a DeprecationWarning (once per process).
 
     GJK stops when the certified gap (upper_bound - lower_bound) is at most tol + rel_tol * |distance|.
     Overlapping shapes give distance 0 and status 'overlapping'; with signed=True, distance = -depth
     from the expanding polytope (EPA), with witness points and bounds certified the same way (see
     the module docstring). A query that cannot close its bounds within max_iter GJK steps (and
-    32 * max_iter EPA expansions, at most 4072) returns status 'failed' with the bounds reached. Raises ValueError for bad poses or tolerances.
+    32 * max_iter EPA expansions, at most 4072) returns status 'failed' with the bounds reached.
+    Raises ValueError for bad poses or tolerances.
     """
+    if isinstance(pose_a, Shape) and not isinstance(B, Shape):  # the old order: (A, pose_a, B, pose_b)
+        _warn_old_order()
+        B, pose_a = pose_a, B
     return Pair(A, B, tol, rel_tol, max_iter, signed).distance(pose_a, pose_b)
+
+
+_OLD_ORDER = {"warned": False}
+
+
+def _warn_old_order() -> None:
+    if not _OLD_ORDER["warned"]:
+        _OLD_ORDER["warned"] = True
+        warnings.warn("spq.distance(A, pose_a, B, pose_b) is deprecated: write spq.distance(A, B, pose_a, pose_b), "
+                      "shapes first, as spq.distances and spq.Pair take them; the old order goes in the next release",
+                      DeprecationWarning, stacklevel=3)
 
 
 def distances(A: Shape, B: Shape, poses_a, poses_b, tol: float = DEFAULT_TOL_ABS, rel_tol: float = DEFAULT_TOL_REL,

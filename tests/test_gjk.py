@@ -28,7 +28,7 @@ def hull(seed, n=60, scale=(0.2, 0.15, 0.1)):
 
 # --- closed forms ---------------------------------------------------------------------------
 def test_box_box_face_gap():
-    r = spq.distance(spq.Box(0.5, 0.5, 0.5), pose(), spq.Box(0.5, 0.5, 0.5), pose(t=(1.3, 0.2, -0.1)))
+    r = spq.distance(spq.Box(0.5, 0.5, 0.5), spq.Box(0.5, 0.5, 0.5), pose(), pose(t=(1.3, 0.2, -0.1)))
     assert r.status == "separated"
     assert r.distance == pytest.approx(0.3, abs=1e-14)
     np.testing.assert_allclose(r.normal, [1, 0, 0], atol=1e-14)
@@ -36,7 +36,7 @@ def test_box_box_face_gap():
 
 
 def test_box_box_corner_to_corner():
-    r = spq.distance(spq.Box(0.5, 0.5, 0.5), pose(), spq.Box(0.5, 0.5, 0.5), pose(t=(1.2, 1.2, 1.2)))
+    r = spq.distance(spq.Box(0.5, 0.5, 0.5), spq.Box(0.5, 0.5, 0.5), pose(), pose(t=(1.2, 1.2, 1.2)))
     assert r.distance == pytest.approx(np.sqrt(3) * 0.2, abs=1e-14)
     np.testing.assert_allclose(r.point_a, [0.5, 0.5, 0.5], atol=1e-14)
 
@@ -46,21 +46,21 @@ def test_the_fcl_progress_stop_case_gives_exactly_three():
     a = spq.Box.from_size(1, 1, 1)
     b = spq.Box.from_size(2, 2, 2)
     rot = Rotation.from_euler("z", 45, degrees=True).as_matrix()
-    r = spq.distance(a, pose(), b, pose(rot, (0.5 + 3.0 + np.sqrt(2), 0, 0)))
+    r = spq.distance(a, b, pose(), pose(rot, (0.5 + 3.0 + np.sqrt(2), 0, 0)))
     assert r.distance == pytest.approx(3.0, abs=1e-12)
 
 
 def test_spheres_and_capsules_use_their_radii():
     s = spq.Sphere(0.2)
-    r = spq.distance(s, pose(t=(1, 2, 3)), spq.Sphere(0.3), pose(t=(1, 2, 4)))
+    r = spq.distance(s, spq.Sphere(0.3), pose(t=(1, 2, 3)), pose(t=(1, 2, 4)))
     assert r.distance == pytest.approx(0.5, abs=1e-14)
     np.testing.assert_allclose(r.point_a, [1, 2, 3.2], atol=1e-14)
     np.testing.assert_allclose(r.point_b, [1, 2, 3.7], atol=1e-14)
     cap = spq.Capsule(0.1, 0.5)  # axis z, segment from -0.5 to 0.5
-    r = spq.distance(cap, pose(), spq.Sphere(0.1), pose(t=(1.0, 0, 0.3)))
+    r = spq.distance(cap, spq.Sphere(0.1), pose(), pose(t=(1.0, 0, 0.3)))
     assert r.distance == pytest.approx(0.8, abs=1e-14)
-    assert spq.distance(cap, pose(), spq.Sphere(0.1), pose(t=(0, 0, 0.75))).distance == pytest.approx(0.05, abs=1e-14)
-    r = spq.distance(cap, pose(), spq.Sphere(0.1), pose(t=(0, 0, 0.65)))
+    assert spq.distance(cap, spq.Sphere(0.1), pose(), pose(t=(0, 0, 0.75))).distance == pytest.approx(0.05, abs=1e-14)
+    r = spq.distance(cap, spq.Sphere(0.1), pose(), pose(t=(0, 0, 0.65)))
     assert r.status == "overlapping" and r.distance == 0.0
 
 
@@ -68,7 +68,7 @@ def test_overlap_and_touching_statuses_on_boxes():
     a = spq.Box(0.5, 0.5, 0.5)
     for x, status in [(0.9, "overlapping"), (0.0, "overlapping"), (1.0 - 1e-8, "overlapping"),
                       (1.0, "touching"), (1.0 + 1e-8, "separated")]:
-        r = spq.distance(a, pose(), a, pose(t=(x, 0, 0)))
+        r = spq.distance(a, a, pose(), pose(t=(x, 0, 0)))
         assert r.status == status, x
         if status == "overlapping":
             assert r.distance == 0.0 and np.isnan(r.point_a).all()
@@ -82,7 +82,7 @@ def test_random_hulls_match_the_minkowski_reference(seed):
     for _ in range(40):
         pa, pb = random_pose(rng), random_pose(rng)
         ref = reference_distance(a, b, pa, pb)
-        r = spq.distance(a, pa, b, pb)
+        r = spq.distance(a, b, pa, pb)
         if ref.status == "separated" and ref.distance > 1e-9:
             assert r.status == "separated"
             assert abs(r.distance - ref.distance) <= 1e-9
@@ -105,8 +105,8 @@ def test_distance_is_invariant_to_a_common_rigid_motion(seed, far):
     a, b = hull(seed % 7), hull(seed % 5 + 50)
     pa, pb = random_pose(rng), random_pose(rng)
     g = pose(Rotation.random(random_state=rng).as_matrix(), rng.normal(size=3) * far)
-    r0 = spq.distance(a, pa, b, pb)
-    r1 = spq.distance(a, g @ pa, b, g @ pb)
+    r0 = spq.distance(a, b, pa, pb)
+    r1 = spq.distance(a, b, g @ pa, g @ pb)
     assert r0.status == r1.status or min(r0.distance, r1.distance) < 1e-9
     assert abs(r0.distance - r1.distance) <= 1e-9 + 1e-15 * far
 
@@ -119,7 +119,7 @@ def test_batch_pair_and_single_agree_and_batch_is_cold_by_default():
     batch = spq.distances(a, b, pa, pb)
     pair = spq.Pair(a, b)
     for i in range(0, 300, 7):
-        single = spq.distance(a, pa[i], b, pb[i])
+        single = spq.distance(a, b, pa[i], pb[i])
         warm = pair.distance(pa[i], pb[i])
         assert batch.status[i] == single.status == warm.status
         assert batch.distance[i] == single.distance  # same cold start: bit-identical
@@ -149,9 +149,9 @@ def test_warm_start_along_a_smooth_path_takes_fewer_iterations():
 def test_bad_poses_raise_value_error(bad, what):
     a = spq.Box(1, 1, 1)
     with pytest.raises(ValueError, match=what):
-        spq.distance(a, bad, a, np.eye(4))
+        spq.distance(a, a, bad, np.eye(4))
     with pytest.raises(ValueError, match=what):
-        spq.distance(a, np.eye(4), a, bad)
+        spq.distance(a, a, np.eye(4), bad)
     if bad.shape == (4, 4):
         batch = np.stack([np.eye(4), bad])
         with pytest.raises(ValueError, match=what):
@@ -161,12 +161,12 @@ def test_bad_poses_raise_value_error(bad, what):
 @pytest.mark.parametrize("kwargs", [dict(tol=-1), dict(tol=np.nan), dict(tol=0, rel_tol=0), dict(max_iter=0)])
 def test_bad_tolerances_raise_value_error(kwargs):
     with pytest.raises(ValueError):
-        spq.distance(spq.Box(1, 1, 1), np.eye(4), spq.Box(1, 1, 1), np.eye(4), **kwargs)
+        spq.distance(spq.Box(1, 1, 1), spq.Box(1, 1, 1), np.eye(4), np.eye(4), **kwargs)
 
 
 def test_bad_shapes_and_primitive_sizes_raise_value_error():
     with pytest.raises(ValueError, match="spq shape"):
-        spq.distance(np.zeros((4, 3)), np.eye(4), spq.Box(1, 1, 1), np.eye(4))
+        spq.distance(np.zeros((4, 3)), spq.Box(1, 1, 1), np.eye(4), np.eye(4))
     for make in (lambda: spq.Sphere(0), lambda: spq.Box(1, -1, 1), lambda: spq.Capsule(np.nan, 1)):
         with pytest.raises(ValueError):
             make()
@@ -174,8 +174,33 @@ def test_bad_shapes_and_primitive_sizes_raise_value_error():
 
 def test_iteration_cap_returns_a_status_not_a_wrong_number():
     a, b = hull(5, n=300), hull(6, n=300)
-    r = spq.distance(a, np.eye(4), b, pose(t=(0.9, 0.2, 0.1)), max_iter=1)
+    r = spq.distance(a, b, np.eye(4), pose(t=(0.9, 0.2, 0.1)), max_iter=1)
     assert r.status in ("failed", "separated")
     if r.status == "separated":  # converged in one step: then it must be right
         assert abs(r.distance - reference_distance(a, b, np.eye(4), pose(t=(0.9, 0.2, 0.1))).distance) < 1e-9
     assert r.lower_bound <= r.distance or np.isnan(r.distance)
+
+
+def test_distance_takes_the_shapes_first_and_the_old_order_warns_once(monkeypatch):
+    """One order, shapes then poses, as distances() and Pair take them; spq 0.1's distance(A, pose_a, B,
+    pose_b) gives the same answer with one DeprecationWarning per process."""
+    import warnings
+
+    import spq.query as sq
+
+    monkeypatch.setitem(sq._OLD_ORDER, "warned", False)
+    a, b = spq.Box(0.5, 0.5, 0.5), spq.Sphere(0.25)
+    pa, pb = np.eye(4), np.eye(4)
+    pb[:3, 3] = [1.5, 0.25, 0.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new order does not warn
+        new = spq.distance(a, b, pa, pb)
+        batch = spq.distances(a, b, pa[None], pb[None])
+    assert new.distance == pytest.approx(0.75, abs=1e-12)  # the ball's centre 1 m from the box's face, less 0.25
+    assert batch.distance[0] == new.distance
+    with pytest.warns(DeprecationWarning, match=r"spq\.distance\(A, B, pose_a, pose_b\)"):
+        old = spq.distance(a, pa, b, pb)
+    assert old.distance == new.distance and np.array_equal(old.point_b, new.point_b)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # once per process
+        assert spq.distance(a, pa, b, pb).distance == new.distance

@@ -30,11 +30,11 @@ def fd_gradient(A, pa, B, pb, h=H, coords=range(12)) -> np.ndarray:
     g = np.full(12, np.nan)
     for k in coords:
         if k < 6:
-            plus = spq.distance(A, perturb(pa, k, h), B, pb, **TOL).distance
-            minus = spq.distance(A, perturb(pa, k, -h), B, pb, **TOL).distance
+            plus = spq.distance(A, B, perturb(pa, k, h), pb, **TOL).distance
+            minus = spq.distance(A, B, perturb(pa, k, -h), pb, **TOL).distance
         else:
-            plus = spq.distance(A, pa, B, perturb(pb, k - 6, h), **TOL).distance
-            minus = spq.distance(A, pa, B, perturb(pb, k - 6, -h), **TOL).distance
+            plus = spq.distance(A, B, pa, perturb(pb, k - 6, h), **TOL).distance
+            minus = spq.distance(A, B, pa, perturb(pb, k - 6, -h), **TOL).distance
         g[k] = (plus - minus) / (2 * h)
     return g
 
@@ -47,7 +47,7 @@ def random_pose(rng, offset) -> np.ndarray:
 
 
 def analytic(A, pa, B, pb) -> tuple[np.ndarray, spq.DistanceResult]:
-    res = spq.distance(A, pa, B, pb, **TOL)
+    res = spq.distance(A, B, pa, pb, **TOL)
     ga, gb = spq.distance_gradient(res, pa, pb)
     return np.concatenate([ga, gb]), res
 
@@ -150,7 +150,7 @@ def test_kuka_link_stp():
 
 def test_nan_when_overlapping(shapes):
     stp = shapes["STP"]
-    res = spq.distance(stp, np.eye(4), stp, np.eye(4))
+    res = spq.distance(stp, stp, np.eye(4), np.eye(4))
     assert res.status == "overlapping"
     ga, gb = spq.distance_gradient(res, np.eye(4), np.eye(4))
     assert np.isnan(ga).all() and np.isnan(gb).all()
@@ -165,7 +165,7 @@ def test_batch_matches_single(shapes):
     ga, gb = spq.distance_gradients(batch, pa, pb)
     assert ga.shape == gb.shape == (5, 6)
     for i in range(4):
-        sa, sb = spq.distance_gradient(spq.distance(A, pa[i], B, pb[i], **TOL), pa[i], pb[i])
+        sa, sb = spq.distance_gradient(spq.distance(A, B, pa[i], pb[i], **TOL), pa[i], pb[i])
         np.testing.assert_allclose(ga[i], sa, atol=1e-9)
         np.testing.assert_allclose(gb[i], sb, atol=1e-9)
     assert np.isnan(ga[4]).all() and np.isnan(gb[4]).all()

@@ -69,7 +69,7 @@ def test_moving_b_by_the_penetration_vector_makes_the_pair_touch():
     B = spq.Superellipsoid.fit(load_object("kuka_link_2").vertices).shape
     moved = p.pose_b.copy()
     moved[:3, 3] += p.depth * p.normal
-    after = spq.distance(A, p.pose_a, B, moved, signed=True)
+    after = spq.distance(A, B, p.pose_a, moved, signed=True)
     assert abs(after.distance) < 1e-8
 
 

@@ -287,7 +287,7 @@ def test_jvrc1_auto_stores_shared_hulls_once_and_each_pair_matches_a_lone_query(
     for k in range(0, len(jvrc1_auto.pairs), 7):
         (a, b), (sa, sb) = jvrc1_auto.pairs[k], jvrc1_auto.pair_kinds[k]
         A, B = (Scene._volume(jvrc1_auto.bodies[i], bv)[0] for i, bv in ((a, sa), (b, sb)))
-        lone = spq.distance(A, poses[a], B, poses[b])
+        lone = spq.distance(A, B, poses[a], poses[b])
         assert abs(lone.distance - result.distance[k]) <= 1e-9, (jvrc1_auto.pair_names[k], lone.distance)
 
 

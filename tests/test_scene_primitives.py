@@ -144,5 +144,5 @@ def test_an_stp_bv_takes_the_same_hull_in_another_vertex_order():
     for _ in range(20):
         pose = np.eye(4)
         pose[:3, 3] = rng.normal(size=3) * 0.2
-        a, b = spq.distance(own, np.eye(4), box, pose), spq.distance(swapped, np.eye(4), box, pose)
+        a, b = spq.distance(own, box, np.eye(4), pose), spq.distance(swapped, box, np.eye(4), pose)
         assert a.status == b.status and abs(a.distance - b.distance) <= 1e-12

@@ -86,7 +86,7 @@ def test_single_queries_and_pairs_equal_the_batched_ones(links, overlap_suite):
     batch = spq.distances(a, b, s.pose_a[:30], s.pose_b[:30], signed=True)
     pair = spq.Pair(a, b, signed=True)
     for i in range(30):
-        one = spq.distance(a, s.pose_a[i], b, s.pose_b[i], signed=True)
+        one = spq.distance(a, b, s.pose_a[i], s.pose_b[i], signed=True)
         warm = pair.distance(s.pose_a[i], s.pose_b[i])
         assert abs(one.distance - batch.distance[i]) <= 1e-15
         assert abs(warm.distance - s.ref_signed[i]) <= DEPTH_TOL
@@ -146,14 +146,14 @@ def check_result(res, expected, tol=1e-9):
 @pytest.mark.parametrize("gap", [0.3, 1e-3, 1e-9, 0.0, -1e-9, -1e-3, -0.3, -1.1])
 def test_spheres(gap):
     A, B = spq.Sphere(0.5), spq.Sphere(0.7)
-    res = spq.distance(A, np.eye(4), B, translate(1.2 + gap, 0.0, 0.0), signed=True)
+    res = spq.distance(A, B, np.eye(4), translate(1.2 + gap, 0.0, 0.0), signed=True)
     check_result(res, gap, tol=1e-12)
     np.testing.assert_allclose(res.normal, [1, 0, 0], atol=1e-9)
     np.testing.assert_allclose(res.point_a, [0.5, 0, 0], atol=1e-9)
 
 
 def test_coincident_spheres_give_the_sum_of_radii_along_some_unit_normal():
-    res = spq.distance(spq.Sphere(0.5), np.eye(4), spq.Sphere(0.25), np.eye(4), signed=True)
+    res = spq.distance(spq.Sphere(0.5), spq.Sphere(0.25), np.eye(4), np.eye(4), signed=True)
     check_result(res, -0.75, tol=1e-12)
     assert abs(np.linalg.norm(res.normal) - 1) <= 1e-12
     assert abs(np.linalg.norm(res.point_a) - 0.5) <= 1e-12
@@ -164,7 +164,7 @@ def test_coincident_spheres_give_the_sum_of_radii_along_some_unit_normal():
 def test_boxes_face_to_face(depth, shift):
     # axis-aligned boxes: GJK ends with the origin on a face or an edge of a box-like simplex
     A, B = spq.Box(0.5, 0.3, 0.2), spq.Box(0.4, 0.25, 0.1)
-    res = spq.distance(A, np.eye(4), B, translate(shift, 0.0, 0.3 - depth), signed=True)
+    res = spq.distance(A, B, np.eye(4), translate(shift, 0.0, 0.3 - depth), signed=True)
     check_result(res, -depth, tol=1e-12)
     np.testing.assert_allclose(res.normal, [0, 0, 1], atol=1e-9)
     assert abs(res.point_a[2] - 0.2) <= 1e-12 and abs(res.point_b[2] - (0.2 - depth)) <= 1e-12
@@ -173,7 +173,7 @@ def test_boxes_face_to_face(depth, shift):
 def test_a_box_inside_a_box_gets_the_least_way_out():
     A, B = spq.Box(1.0, 0.8, 0.6), spq.Box(0.1, 0.1, 0.1)
     # B's centre at (0.2, -0.5, 0.05): ways out along +x 0.9, -y 0.4, +z 0.65 (plus B's half size)
-    res = spq.distance(A, np.eye(4), B, translate(0.2, -0.5, 0.05), signed=True)
+    res = spq.distance(A, B, np.eye(4), translate(0.2, -0.5, 0.05), signed=True)
     check_result(res, -(0.8 - 0.5 + 0.1), tol=1e-12)
     np.testing.assert_allclose(res.normal, [0, -1, 0], atol=1e-9)
 
@@ -183,7 +183,7 @@ def test_a_rotated_box_edge_into_a_face():
     depth = 0.01
     # B turned 45 deg about x: its lowest edge is 0.2*sqrt(2) below its centre
     pose_b = rotated(translate(0.1, 0.0, 0.5 + 0.2 * np.sqrt(2) - depth), [np.pi / 4, 0, 0])
-    res = spq.distance(A, np.eye(4), B, pose_b, signed=True)
+    res = spq.distance(A, B, np.eye(4), pose_b, signed=True)
     check_result(res, -depth, tol=1e-12)
     np.testing.assert_allclose(res.normal, [0, 0, 1], atol=1e-9)
 
@@ -193,18 +193,18 @@ def test_crossing_capsules(gap):
     A, B = spq.Capsule(0.1, 1.0), spq.Capsule(0.05, 0.7)
     # A along z, B along x (both capsules lie along their local z): axes cross at distance 0.15 + gap
     pose_b = rotated(translate(0.0, 0.15 + gap, 0.3), [0, np.pi / 2, 0])
-    res = spq.distance(A, np.eye(4), B, pose_b, signed=True)
+    res = spq.distance(A, B, np.eye(4), pose_b, signed=True)
     check_result(res, gap, tol=1e-12)
     np.testing.assert_allclose(res.normal, [0, 1, 0], atol=1e-9)
 
 
 def test_sphere_in_a_box_and_box_in_a_sphere():
     box, ball = spq.Box(0.5, 0.4, 0.3), spq.Sphere(0.1)
-    res = spq.distance(box, np.eye(4), ball, translate(0.0, 0.0, 0.25), signed=True)
+    res = spq.distance(box, ball, np.eye(4), translate(0.0, 0.0, 0.25), signed=True)
     check_result(res, -(0.05 + 0.1), tol=1e-12)
     np.testing.assert_allclose(res.normal, [0, 0, 1], atol=1e-9)
     # swapped: now the box is B, and it must move down for the ball to leave through its top
-    res = spq.distance(ball, translate(0.0, 0.0, 0.25), box, np.eye(4), signed=True)
+    res = spq.distance(ball, box, translate(0.0, 0.0, 0.25), np.eye(4), signed=True)
     check_result(res, -(0.05 + 0.1), tol=1e-12)
     np.testing.assert_allclose(res.normal, [0, 0, -1], atol=1e-9)
 
@@ -245,7 +245,7 @@ def test_an_iteration_cap_gives_failed_with_valid_bounds():
 def test_signed_must_be_a_bool(links, bad):
     a, b = links
     with pytest.raises(ValueError, match="signed"):
-        spq.distance(a, np.eye(4), b, np.eye(4), signed=bad)
+        spq.distance(a, b, np.eye(4), np.eye(4), signed=bad)
     with pytest.raises(ValueError, match="signed"):
         spq.distances(a, b, np.eye(4)[None], np.eye(4)[None], signed=bad)
     with pytest.raises(ValueError, match="signed"):
@@ -261,7 +261,7 @@ def test_gradient_of_an_overlap_matches_finite_differences_of_the_reference(link
     h = 1e-7
     idx = np.flatnonzero(s.bucket == "overlap-1e-2")[:8]
     for i in idx:
-        res = spq.distance(a, s.pose_a[i], b, s.pose_b[i], signed=True)
+        res = spq.distance(a, b, s.pose_a[i], s.pose_b[i], signed=True)
         ga, gb = spq.distance_gradient(res, s.pose_a[i], s.pose_b[i])
         assert np.isfinite(ga).all() and np.isfinite(gb).all()
         ref = MinkowskiReference(a, b, s.pose_a[i], s.pose_b[i])
@@ -272,7 +272,7 @@ def test_gradient_of_an_overlap_matches_finite_differences_of_the_reference(link
             assert abs(fd - gb[k]) <= 1e-6, (i, k, fd, gb[k])
         np.testing.assert_allclose(ga[:3], -gb[:3])
     # unsigned overlaps still have none
-    res = spq.distance(a, s.pose_a[idx[0]], b, s.pose_b[idx[0]])
+    res = spq.distance(a, b, s.pose_a[idx[0]], s.pose_b[idx[0]])
     assert np.isnan(spq.distance_gradient(res, s.pose_a[idx[0]], s.pose_b[idx[0]])[1]).all()
 
 

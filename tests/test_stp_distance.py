@@ -50,8 +50,8 @@ def test_stp_distance_is_at_most_the_pch_distance_minus_r(link4, link2):
     pa, pb = random_poses(300, seed=5, translation_range=0.3)
     for i in range(len(pa)):
         d_pch = pair.query(pa[i], pb[i]).distance
-        assert spq.distance(a, pa[i], link2, pb[i]).distance <= max(0.0, d_pch - r) + 1e-9
-        assert spq.distance(a, pa[i], b, pb[i]).distance <= max(0.0, d_pch - 2 * r) + 1e-9
+        assert spq.distance(a, link2, pa[i], pb[i]).distance <= max(0.0, d_pch - r) + 1e-9
+        assert spq.distance(a, b, pa[i], pb[i]).distance <= max(0.0, d_pch - 2 * r) + 1e-9
 
 
 def test_stp_distance_tends_to_the_pch_distance_as_r_shrinks_and_r_grows(link4, link2):

@@ -119,7 +119,7 @@ def test_stp_distance_never_exceeds_the_pch_distance_minus_r(shared_datasets):
         pb[:3, 3] = rng.normal(size=3) * size
         d_pch = coal_pair.query(pa, pb).distance
         for a, b, shrink in ((stp, pch, stp.r), (stp, stp, 2 * stp.r), (pch, stp, stp.r)):
-            r = spq.distance(a, pa, b, pb)
+            r = spq.distance(a, b, pa, pb)
             assert r.status != "failed"
             assert r.distance <= max(0.0, d_pch - shrink) + 1e-9
 

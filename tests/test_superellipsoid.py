@@ -377,7 +377,7 @@ def test_gjk_with_the_superellipsoid_on_either_side_agrees_with_a_sampled_hull()
     assert (sampled.distance - forward.distance).max() < 1e-3
     # the single query gives the batch's answer
     for i in range(0, n, 20):
-        r = spq.distance(se, poses_se[i], poly, poses_poly[i])
+        r = spq.distance(se, poly, poses_se[i], poses_poly[i])
         assert r.status == forward.status[i]
         assert r.distance == pytest.approx(forward.distance[i], abs=1e-12)
     # witness points: on A's surface (in A's frame) at the reported distance from B's
@@ -498,6 +498,6 @@ def test_distances_between_two_smooth_superellipsoids_agree_with_a_minimisation_
         assert batch.distance[i] == pytest.approx(exact, abs=1e-9)
     # and the single query gives the batch's answer
     for i in range(0, n, 25):
-        r = spq.distance(A, poses_a[i], B, poses_b[i])
+        r = spq.distance(A, B, poses_a[i], poses_b[i])
         assert r.status == batch.status[i]
         assert r.distance == pytest.approx(batch.distance[i], abs=1e-12)

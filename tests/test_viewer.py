@@ -112,7 +112,7 @@ def test_the_pair_view_gives_spq_signed_distance():
         pose = np.eye(4)
         pose[:3, 3] = [0.05, 0.02, 0.0]  # overlapping
         view.move_b(pose)
-        ref = spq.distance(a.shape, np.eye(4), b.shape, pose @ b.local, signed=True)
+        ref = spq.distance(a.shape, b.shape, np.eye(4), pose @ b.local, signed=True)
         assert view.result.distance == pytest.approx(ref.distance, abs=1e-12) and ref.distance < 0
         assert "penetration depth" in view.status.content
     finally:
