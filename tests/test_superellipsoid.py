@@ -501,3 +501,16 @@ def test_distances_between_two_smooth_superellipsoids_agree_with_a_minimisation_
         r = spq.distance(A, B, poses_a[i], poses_b[i])
         assert r.status == batch.status[i]
         assert r.distance == pytest.approx(batch.distance[i], abs=1e-12)
+
+
+def test_a_pointy_needle_builds_its_inner_polytope():
+    """Exponents near 2 and axis ratio 67 (fuzz campaign seed 0, case 1108): most support directions
+    end near the tips, and qhull refused the cloud; the distance along the long axis to a ball is
+    a - 0.5 - r by hand."""
+    a = 0.31567336923415057
+    s = spq.Superellipsoid(a, 0.00468976329781721, 0.05395211381063139, 1.7983703780697284, 1.849628863084512)
+    ball = np.eye(4)
+    ball[0, 3] = 0.5
+    r = spq.distance(s, spq.Sphere(0.01), np.eye(4), ball)
+    assert r.status == "separated"
+    assert r.distance == pytest.approx(0.5 - a - 0.01, abs=1e-9)
