@@ -1,7 +1,7 @@
 """Throughput benchmarks: queries per second of every engine on the same object and poses, one run.
 
 Each engine runs its leanest per-query Python loop (``PreparedPair.distance_loop``); spq also runs its
-batched compiled call. The figure reported is the best of ``repeats`` timed runs (the least disturbed
+batched compiled call and the plain ``spq.distance`` call in a loop. The figure reported is the best of ``repeats`` timed runs (the least disturbed
 by other load on the machine), the runs of all engines taken in turn within each round (see
 :func:`best_times`), and every rate is divided by coal's PCH-PCH rate from the same run.
 """
@@ -93,6 +93,22 @@ def _signed_modes(shape_a, shape_b) -> list[tuple[str, object]]:
     return [("batched signed", batched), ("per-call signed", per_call)]
 
 
+def _plain_call_modes(shape_a, shape_b, tol: float, rel_tol: float) -> list[tuple[str, object]]:
+    """The call a newcomer writes first, ``spq.distance(A, B, pose_a, pose_b)`` in a Python loop (a Pair
+    made per call), unsigned and signed, as timing_modes: its own rows beside the prepared Pair's
+    ("per-call")."""
+    import spq
+
+    def plain(signed: bool):
+        def run(poses_a, poses_b):
+            distance = spq.distance
+            return np.array([distance(shape_a, shape_b, pa, pb, tol=tol, rel_tol=rel_tol, signed=signed).distance
+                             for pa, pb in zip(poses_a, poses_b)])
+        return run
+
+    return [("plain call", plain(False)), ("plain call signed", plain(True))]
+
+
 def _threaded_modes(shape_a, shape_b, tol: float, rel_tol: float, workers: int) -> list[tuple[str, object]]:
     """spq's batched modes, unsigned and signed, on ``workers`` threads (their results equal the
     one-thread batches' bit for bit), as timing_modes."""
@@ -136,7 +152,10 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
             a_kind, b_kind = pair_type.split("-")
             pair = engines[name].prepare(shapes[a_kind], shapes[b_kind])
             prepared.append(pair)
-            extra = _signed_modes(shapes[a_kind], shapes[b_kind]) if name == "spq" else []
+            extra = []
+            if name == "spq":
+                extra = _signed_modes(shapes[a_kind], shapes[b_kind]) + _plain_call_modes(
+                    shapes[a_kind], shapes[b_kind], engines[name].tolerance, engines[name].rel_tol)
             if name == "spq" and workers > 1:
                 extra += _threaded_modes(shapes[a_kind], shapes[b_kind], engines[name].tolerance, engines[name].rel_tol,
                                          workers)

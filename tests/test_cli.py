@@ -12,7 +12,8 @@ def test_bench_pch_writes_rates_and_the_ratio_to_coal(tmp_path):
                  "--out", str(tmp_path)]) == 0
     table = pd.read_csv(tmp_path / "bench_pch.csv")
     assert set(table.engine) == {"spq", "coal"}
-    assert set(table[table.engine == "spq"]["mode"]) == {"batched", "per-call", "batched signed", "per-call signed"}
+    assert set(table[table.engine == "spq"]["mode"]) == {"batched", "per-call", "batched signed", "per-call signed",
+                                                          "plain call", "plain call signed"}
     assert set(table.poses) == {"all", "overlapping"}
     assert (table.queries_per_s > 0).all()
     assert (table.loc[table.engine == "coal", "ratio_to_coal_pch"] == 1.0).all()
