@@ -856,6 +856,10 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
         nv += 1
         if caps:
             lower = _exact_deepest(kA, fA, iA, kB, fB, iB, R, t, nv - 1, lower, warm, work)
+    if not closed and (stop == STOP_HORIZON or stop == STOP_FAN_SLIVER or stop == STOP_FAN_INWARD):
+        # an expansion that floating point cannot make (a support point on a horizon edge's line) is
+        # a stall as much as a support point on the face: the same slack settles it
+        closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
     work[EPA_ROW + EPA_TMP, 3] = STOP_CLOSED if closed else stop
     if off < 0.0 and not near:
         row = EPA_ROW + EPA_PLANES + f

@@ -72,6 +72,7 @@ from spq.kernels.signed import (
     supports_as_witnesses,
     core_support,
     set_result,
+    unsigned_of_signed,
 )
 from spq.kernels.superellipsoid_support import FDATA_SIZE
 from spq.kernels.indexing import at
@@ -941,9 +942,13 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
             extra = -used - 1
     status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
                                                    dir_io, warm, work)
-    if signed:
-        return signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, lower,
-                             it + extra, dir_io, warm, work, iwork, out)
+    if signed or status == FAILED:
+        # A stalled descent (rounding stops it about 1e-8 of the distance short, next to a boxy
+        # superellipsoid's edge or between needle-thin bodies) gets the signed query's rescue either
+        # way: the EPA from its simplex settles the side and closes the bounds.
+        status = signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv,
+                               lower, it + extra, dir_io, warm, work, iwork, out)
+        return status if signed else unsigned_of_signed(out)
     if status == TOUCHING and tol_abs > 0.0:
         status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm,
                                  work[PROBE_ROW:PROBE_END], iwork[WARM_SIZE:EPA_IOFF])

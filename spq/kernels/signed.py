@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import math
 
-from spq.kernels.epa import EPA_FLAT, EPA_RESULT, epa
+import numpy as np
+
+from spq.kernels.epa import EPA_FLAT, EPA_RESULT, bounds_closed, epa
 from spq.kernels.gjk import (
     FAILED,
     OUT_DISTANCE,
@@ -67,6 +69,22 @@ def add_margins(mA, mB, tol_abs, out):
     out[OUT_LOWER] -= m
     if out[OUT_STATUS] != FAILED:
         out[OUT_STATUS] = status_of(out[OUT_DISTANCE], tol_abs)
+
+
+@kernel
+def unsigned_of_signed(out):
+    """A signed result in out as an unsigned query gives it: an overlap has distance and lower bound 0
+    and no witness points or normal; otherwise negative values (within tol_abs of touching) become 0.
+    Returns the status code."""
+    if out[OUT_STATUS] == OVERLAPPING:
+        for c in range(OUT_POINT_A, OUT_NORMAL + 3):
+            out[c] = np.nan
+        out[OUT_DISTANCE] = 0.0
+        out[OUT_LOWER] = 0.0
+    else:
+        out[OUT_DISTANCE] = max(out[OUT_DISTANCE], 0.0)
+        out[OUT_LOWER] = max(out[OUT_LOWER], 0.0)
+    return int(out[OUT_STATUS])
 
 
 @kernel
@@ -124,7 +142,10 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
             elif outcome == EPA_FLAT and n0 * d0 + n1 * d1 + n2 * d2 < 0.0:
                 n0, n1, n2 = -n0, -n1, -n2
             descent_result(TOUCHING, k, lam, PA, PB, low, it + eit, tol_abs, n0, n1, n2, out)
-            if not closed and (outcome != EPA_FLAT or status == FAILED):
+            if not closed and (outcome != EPA_FLAT or status == FAILED) and not bounds_closed(
+                    out[OUT_UPPER], out[OUT_LOWER], tol_abs, tol_rel):
+                # (a stalled descent between two nearly parallel segments, D flat, may still have
+                # met its bounds: the plane across D bounds sd from below)
                 out[OUT_STATUS] = FAILED
     else:
         descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
