@@ -213,6 +213,16 @@ class Pair:
             _raise_pose_error(code)
         return DistanceResult(out)
 
+    def cold_distance(self, pose_a, pose_b) -> DistanceResult:
+        """As :meth:`distance`, from a cold start: the answer a new Pair gives, bit for bit, whatever
+        this pair was asked before; the warm start is left cleared."""
+        out = np.empty((1, OUT_SIZE))
+        code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats,
+                              _as_matrix(pose_a)[None], _as_matrix(pose_b)[None], False, out, *_thread_scratch())
+        if code >= 0:
+            _raise_pose_error(code % 100)
+        return DistanceResult(out[0])
+
     def distances(self, poses_a, poses_b, coherent: bool = True, workers: int = 1) -> BatchDistances:
         """Batched queries (see :func:`distances`), continuing this pair's warm start.
 
@@ -266,7 +276,27 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
     if isinstance(pose_a, Shape) and not isinstance(B, Shape):  # the old order: (A, pose_a, B, pose_b)
         _warn_old_order()
         B, pose_a = pose_a, B
-    return Pair(A, B, tol, rel_tol, max_iter, signed).distance(pose_a, pose_b)
+    return _plain_pair(A, B, tol, rel_tol, max_iter, signed).cold_distance(pose_a, pose_b)
+
+
+PLAIN_PAIRS = 32  # shape pairs (with their options) whose packing each thread keeps for distance()
+
+
+def _plain_pair(A: Shape, B: Shape, tol, rel_tol, max_iter, signed) -> "Pair":
+    """The Pair a plain distance() call runs on (cold, see Pair.cold_distance): packed once per shape
+    pair and options and kept per thread, as a loop over poses would otherwise spend half its time
+    packing. The cache holds the last PLAIN_PAIRS pairs, and the shapes with them."""
+    cache = getattr(_SCRATCH, "pairs", None)
+    if cache is None:
+        cache = _SCRATCH.pairs = {}
+    key = (id(A), id(B), tol, rel_tol, max_iter, signed)
+    pair = cache.get(key)
+    if pair is None or pair.A is not A or pair.B is not B:
+        pair = Pair(A, B, tol, rel_tol, max_iter, signed)
+        if len(cache) >= PLAIN_PAIRS:
+            del cache[next(iter(cache))]
+        cache[key] = pair
+    return pair
 
 
 _OLD_ORDER = {"warned": False}

@@ -213,3 +213,29 @@ def test_distance_takes_the_shapes_first_and_the_old_order_warns_once(monkeypatc
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # once per process
         assert spq.distance(a, pa, b, pb).distance == new.distance
+
+
+def test_plain_call_answers_as_a_new_pair_whatever_came_before():
+    """spq.distance keeps each thread's packing of a shape pair (spq.query.PLAIN_PAIRS) but starts every
+    call cold: its answer equals a new Pair's bit for bit, after other poses, the other mode and a
+    full cache; the oracle for the values is the exact reference."""
+    import spq.query as sq
+
+    a, b, c = hull(11), hull(12), spq.STPBV.from_points(hull(13).vertices, 0.01, 2.0)
+    poses = [pose(rot=Rotation.from_rotvec([0.3 * k, -0.2, 0.1 * k]).as_matrix(), t=(0.1 * k - 0.2, 0.05, 0.0))
+             for k in range(6)]
+    nudged = [p.copy() for p in poses]
+    for p in nudged:
+        p[0, 3] += 1e-5  # a warm start would keep the last simplex here and differ in its iterations
+    for k, pb in enumerate(q for pair in zip(poses, nudged) for q in pair):
+        for signed in (False, True):
+            for B in (b, c):
+                got = spq.distance(a, B, np.eye(4), pb, signed=signed)
+                new = spq.Pair(a, B, signed=signed).distance(np.eye(4), pb)
+                assert np.array_equal(got._out, new._out, equal_nan=True)
+        ref = reference_distance(a, b, np.eye(4), pb).signed_distance
+        sd = spq.distance(a, b, np.eye(4), pb, signed=True)
+        assert sd.lower_bound - 1e-9 <= ref <= sd.upper_bound + 1e-9
+    for k in range(sq.PLAIN_PAIRS + 3):  # the cache stays bounded
+        spq.distance(a, b, np.eye(4), poses[1], tol=1e-10 * (1 + k))
+    assert len(sq._SCRATCH.pairs) <= sq.PLAIN_PAIRS
