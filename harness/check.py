@@ -6,11 +6,11 @@ by composing the crosscheck, stability and depth suites and the speed rounds bel
 A check run measures, with every engine it is given and at fixed seeds:
 
 - accuracy (PCH-PCH, every engine): per distance bucket, the largest error against the exact
-  reference (:mod:`harness.reference`), wrong statuses and failures; on the touching and overlap
+  reference (:mod:`harness.references.minkowski`), wrong statuses and failures; on the touching and overlap
   buckets, for engines that give a depth, the largest depth error and sign errors; for engines that
   give certified bounds (spq), the poses whose bounds miss the reference;
 - the other bounding volumes (spq): STP-BV and superellipsoid pairs against the independent depth
-  oracle (:mod:`harness.depth_oracle`): largest error, failures, certified bounds missing it;
+  oracle (:mod:`harness.references.depth_oracle`): largest error, failures, certified bounds missing it;
 - stability (every engine): wrong and failed verdicts on the stability and penetration families
   (:mod:`harness.stability`, one pose per case);
 - fuzz (spq, and coal, mujoco and bullet where they run): a small fuzz campaign (:mod:`harness.fuzz`),
@@ -146,7 +146,7 @@ def accuracy_metrics(table: pd.DataFrame) -> list[Metric]:
 
 
 def oracle_metrics(table: pd.DataFrame) -> list[Metric]:
-    """Metrics from a depth-oracle table (harness.depth_oracle.compare's rows), engine 'spq'."""
+    """Metrics from a depth-oracle table (harness.references.depth_oracle.compare's rows), engine 'spq'."""
     out = []
     for (pair, bucket), g in table.groupby(["pair", "bucket"], sort=False):
         check = f"oracle/{pair}/{bucket}"

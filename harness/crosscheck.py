@@ -1,7 +1,7 @@
 """Cross-check: every engine on the same distance-controlled poses, scored against the exact reference.
 
 Output is one tidy table (a row per engine and query) and a summary per engine and bucket. Errors
-are taken against :class:`harness.reference.MinkowskiReference`, which shares no code with spq's GJK.
+are taken against :class:`harness.references.minkowski.MinkowskiReference`, which shares no code with spq's GJK.
 """
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ otherwise, the detail saying what is at fault:
 - ``construction:`` the topology (spq.stp.construction): inconsistent or not one closed surface
   (V - E + F = 2), a face's ball of radius R - r misses a point (the definition of a face), or the
   STP-BV of its vertices is not the cloud's: for clouds of up to ORACLE_MAX_POINTS points its
-  brute-force support (harness.stp_oracle: no topology, the best admissible centre over every
+  brute-force support (harness.references.stp_oracle: no topology, the best admissible centre over every
   sphere, circle and triple point) differs from that of all the points; for bigger clouds on at most
   ORACLE_MAX_VERTICES vertices it misses a point;
 - ``volume:`` the STP-BV built on a topology that passed (spq.shapes.stpbv, its support function):
@@ -382,10 +382,10 @@ def _farthest(x: np.ndarray, c: np.ndarray, chunk: int = 4_000_000) -> np.ndarra
 
 
 def _oracle_support(points: np.ndarray, r: float, R: float, u: np.ndarray, shift: np.ndarray):
-    """h(u) (m,) of the STP-BV of points (n, 3) along unit rows of u by harness.stp_oracle, run about
+    """h(u) (m,) of the STP-BV of points (n, 3) along unit rows of u by harness.references.stp_oracle, run about
     shift (its feasibility slack is absolute); None when it finds no centre within that slack (Q a
     point: R at its minimum)."""
-    from harness.stp_oracle import BruteForceSTP
+    from harness.references.stp_oracle import BruteForceSTP
 
     try:
         return np.einsum("ij,ij->i", BruteForceSTP(points - shift, r, R).support_many(u), u) + u @ shift
@@ -455,7 +455,7 @@ def check_construction(points, r: float, R: float, rng=None) -> tuple[str, str]:
     built on it, its support function, misses a point, bulges out of a face's ball, differs from the
     brute-force support or leaves directions with other than one owner).
     """
-    from harness.stp_oracle import FEAS_REL
+    from harness.references.stp_oracle import FEAS_REL
     from spq.shapes.stpbv import STPBV
     from spq.stp.construction import build_topology
 

@@ -16,7 +16,7 @@ asks for a distance of 1e-3 L.
 Construction of one sample (``bucket_suite``): random rotations for A and B; A's origin uniform in
 [-L, L]^3; B's origin at distance 1.05 (r_A + r_B) from A's in a uniformly random direction (so the
 bounding balls, hence the bodies, are disjoint). The exact closest points then come from
-:class:`harness.reference.MinkowskiReference`, and B is translated along the separation normal n by
+:class:`harness.references.minkowski.MinkowskiReference`, and B is translated along the separation normal n by
 ``target - d``. For separated targets the exact distance is then the target (the Minkowski
 difference lies in the half-space n.x <= -d, touching its boundary at the closest point); for
 overlapping targets B is pushed |target| past contact along n and the reference gives the true
@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from harness.reference import TOUCH_TOL, MinkowskiReference
+from harness.references.minkowski import TOUCH_TOL, MinkowskiReference
 from spq.shapes.polyhedron import Polyhedron
 
 BUCKETS: dict[str, float] = {

@@ -277,7 +277,7 @@ def depth_section(out: Path) -> Section:
         "Penetration depth of pairs with an STP-BV or a superellipsoid, where no exact reference exists: spq's signed "
         "distance against an independent oracle (min over unit n of h_B(n) + h_A(-n), from closed-form superellipsoid "
         "supports, brute-force STP-BV supports from the generating points and hull vertices; many starts, SLSQP "
-        "polish; harness/depth_oracle.py), on overlaps of 1e-4 to 1e-1 times the body size.",
+        "polish; harness/references/depth_oracle.py), on overlaps of 1e-4 to 1e-1 times the body size.",
         f"Largest |spq - oracle| over {int(summary.poses.sum())} poses: {worst.max_abs_error_m:.2g} m ({worst.pair}, "
         f"{worst.bucket}); spq's certified interval holds the oracle's value in {summary.contained_pct.min():.4g}% "
         f"of the poses of the worst bucket; spq failed {int(summary.spq_failed.sum())} times."]

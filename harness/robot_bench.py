@@ -507,7 +507,7 @@ def run(config: RobotBenchConfig, progress: bool = True) -> dict:
     """Every table of the robot benchmark, the scene's size, and under "figures" its charts as
     (file name, draw(path)) pairs: a figure is drawn only when its caller writes it."""
     from datasets.robots import robot_files
-    from harness.pybullet_kinematics import fk_errors
+    from harness.references.pybullet_kinematics import fk_errors
 
     base = load_scene(config, "pch")
     randoms = random_configurations(base.model, config.configurations, config.seed)

@@ -1,7 +1,7 @@
 """Numerical stability: every engine on configurations where distance methods are known to fail.
 
 Case families (each a small set of poses, every one scored against the exact reference of
-:mod:`harness.reference`): touching at 1e-4 .. 1e-12 m, shallow and deep overlaps, scales 1e-3 to
+:mod:`harness.references.minkowski`): touching at 1e-4 .. 1e-12 m, shallow and deep overlaps, scales 1e-3 to
 1e3 m, bodies 1e4 m from the origin, flat and needle-like bodies, near-parallel faces, the box gap
 where FCL's progress-based stop is reported to return 3.16 instead of 3.0 (NOTES 5), and a sweep of
 coal's DualityGap + Relative convergence criterion over gjk_tolerance (NOTES 6).
@@ -36,7 +36,7 @@ import pandas as pd
 
 import spq
 from harness.poses import pose_matrix, random_rotations
-from harness.reference import MinkowskiReference, reference_distance
+from harness.references.minkowski import MinkowskiReference, reference_distance
 
 AMBIGUOUS_BAND = 1e-9  # m
 ENGINES = ("spq", "fcl", "coal", "bullet", "bullet-margin", "mujoco")
@@ -548,7 +548,7 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
     support points along the oracle's normal, an upper bound) goes to a denser oracle run (up to
     DENSE_PER_CASE per draw) and stays 'disputed' if that does not settle it."""
     from harness.fuzz.judge import DENSE_PER_CASE, DENSE_POLISH, DENSE_STARTS, MODES, spq_outputs
-    from harness.depth_oracle import signed_distance as oracle_sd
+    from harness.references.depth_oracle import signed_distance as oracle_sd
     from harness.fuzz.oracle import POLYTOPES, oracle_shape, peer_polyhedron, reference, separation_bounds, spq_shape
     from spq.kernels.gjk import OUT_DISTANCE, OUT_NORMAL, OUT_STATUS, STATUS_NAMES
 
@@ -668,7 +668,7 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
 
 
 def _ref_status(sd: float) -> str:
-    from harness.reference import TOUCH_TOL
+    from harness.references.minkowski import TOUCH_TOL
 
     return "touching" if abs(sd) <= TOUCH_TOL else ("overlapping" if sd < 0 else "separated")
 

@@ -4,7 +4,7 @@ degenerate clouds that showed why, and a seeded run of the construction fuzz fam
 Oracles: the definition of a face (its ball of radius rho = R - r holds every point), a closed surface
 (V - E + F = 2), and the judge of harness.fuzz_construction, which checks the built volume's support
 against the points it must cover, against every face's ball and, for small clouds, against the
-brute-force support of harness.stp_oracle (no topology).
+brute-force support of harness.references.stp_oracle (no topology).
 """
 
 from __future__ import annotations
@@ -143,7 +143,7 @@ VOLUME_FIXTURES = sorted((Path(__file__).parent / "fixtures" / "stp_volume").glo
 def test_volumes_with_a_torus_wider_than_half_a_turn_match_the_oracle(path):
     # R 1e-4 .. 2e-3 above its minimum over 4 and 7 points: Q is a lens whose edge runs more than half
     # way round one circle, a region two half-spaces could not hold (12 % and 53 % of directions had no
-    # owner); the judge compares the support with harness.stp_oracle's brute force
+    # owner); the judge compares the support with harness.references.stp_oracle's brute force
     import json
 
     import spq

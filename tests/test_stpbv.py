@@ -8,7 +8,7 @@ import pytest
 
 import spq
 from spq.shapes.stpbv import STPBV
-from harness.stp_oracle import brute_force_support_many
+from harness.references.stp_oracle import brute_force_support_many
 
 SAMPLE_FILES = [
     ("sch-samples", "sample_stpbv1.txt"),

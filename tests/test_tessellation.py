@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 import spq
-from harness.stp_oracle import brute_force_support_many
+from harness.references.stp_oracle import brute_force_support_many
 from spq import tessellation as ts
 
 

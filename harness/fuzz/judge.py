@@ -182,7 +182,7 @@ def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict
         key = (i, dense)
         if key not in refs:
             if dense:
-                from harness.depth_oracle import signed_distance
+                from harness.references.depth_oracle import signed_distance
 
                 r = signed_distance(oa.core, poses_a[i], ob.core, poses_b[i], starts=DENSE_STARTS,
                                     polish=DENSE_POLISH)

@@ -55,7 +55,7 @@ class OracleShape:
 
 
 def oracle_shape(spec: dict) -> OracleShape:
-    from harness.depth_oracle import Body
+    from harness.references.depth_oracle import Body
 
     kind, eye = spec["kind"], np.eye(4)
     radius = 0.0
@@ -154,7 +154,7 @@ def reference(oa: OracleShape, ob: OracleShape, pose_a, pose_b, poly=None) -> Re
     Minkowski difference qhull cannot build (a precision error on near-coplanar points, about once
     in 10^6 queries) go to the depth oracle, as curved bodies do."""
     if oa.spec["kind"] in POLYTOPES and ob.spec["kind"] in POLYTOPES:
-        from harness.reference import reference_distance
+        from harness.references.minkowski import reference_distance
 
         pa, pb = poly if poly is not None else (peer_polyhedron(oa.spec), peer_polyhedron(ob.spec))
         try:
@@ -162,7 +162,7 @@ def reference(oa: OracleShape, ob: OracleShape, pose_a, pose_b, poly=None) -> Re
             return Reference(float(r.signed_distance), 0.0, True)
         except ValueError:
             pass  # qhull refused the Minkowski difference (near-coplanar points): the oracle judges it
-    from harness.depth_oracle import signed_distance
+    from harness.references.depth_oracle import signed_distance
 
     r = signed_distance(oa.core, pose_a, ob.core, pose_b)
     return Reference(float(r.signed_distance) - oa.radius - ob.radius, float(r.spread), False)

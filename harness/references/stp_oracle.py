@@ -1,5 +1,5 @@
 """Brute-force support function of an STP-BV from its generating points only (an oracle for tests and
-for the depth oracle, harness.depth_oracle).
+for the depth oracle, harness.references.depth_oracle).
 
 NOTES section 1: with rho = R - r, Q = intersection of the balls B(x_i, rho) is the set of admissible
 big-sphere centres, and the support point of the STP-BV in direction v is s(v) = c*(v) + R v/|v|,

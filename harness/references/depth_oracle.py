@@ -6,7 +6,7 @@ penetration depth, and B separates by moving along minus its minimiser (the norm
 evaluates g from the bodies' plain data only, with code that shares nothing with spq's kernels:
 
 - a polytope (PCH): h(n) = max over its vertices of n.v;
-- an STP-BV: the brute-force support of :mod:`harness.stp_oracle` (from the generating points and the
+- an STP-BV: the brute-force support of :mod:`harness.references.stp_oracle` (from the generating points and the
   radii r, R only; no topology, no patches);
 - a superellipsoid (|x/a|^p + |y/b|^p)^(q/p) + |z/c|^q <= 1, p = 2/e2, q = 2/e1: its gauge is the
   nested norm ||(||(x/a, y/b)||_p, z/c)||_q, so its support function is the dual nested norm
@@ -37,7 +37,7 @@ import pandas as pd
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from harness.stp_oracle import BruteForceSTP
+from harness.references.stp_oracle import BruteForceSTP
 
 STARTS = 400  # Fibonacci directions searched before polishing
 POLISH = 4  # SLSQP runs from the best distinct starts
