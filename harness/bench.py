@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from harness.engines import available_engines
-from harness.poses import random_poses
+from harness.workloads.poses import random_poses
 
 BASELINE = ("PCH-PCH", "coal")
 

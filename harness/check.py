@@ -280,7 +280,7 @@ def speed_section(config: CheckConfig, engines: dict, progress: bool = False) ->
 
     import spq
     from datasets import load_object
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
 
     pch = load_object(config.speed_object)
     fit = spq.Superellipsoid.fit(pch.vertices)

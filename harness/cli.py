@@ -98,8 +98,8 @@ def cmd_report(args) -> int:
 
 
 def cmd_scene(args) -> int:
-    from harness import scene_file as sf
-    from harness import scene_run as sr
+    from harness.workloads import scene_file as sf
+    from harness.workloads import scene_run as sr
     from harness.cluster import check_scheduler, describe
     from spq.workers import check_workers
 
@@ -414,7 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_suite("pictures"))
 
     p = sub.add_parser("scene", help="a robot scene from a TOML file (scenes/*.toml): every pair over its configurations")
-    p.add_argument("scene", help="scene file (TOML; see scenes/ and harness/scene_file.py)")
+    p.add_argument("scene", help="scene file (TOML; see scenes/ and harness/workloads/scene_file.py)")
     p.add_argument("--out", help="folder for the per-configuration and closest-posture CSVs (default: none written)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--workers", type=_workers, default=1,

@@ -13,7 +13,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from harness.engines import available_engines
-from harness.poses import BUCKETS, PoseSuite, bucket_suite
+from harness.workloads.poses import BUCKETS, PoseSuite, bucket_suite
 
 AMBIGUOUS_BAND = 1e-9  # m: |reference signed distance| below this counts as contact, either status is right
 
@@ -24,7 +24,7 @@ class CrosscheckConfig:
     per_bucket: int  # poses per bucket, summed over all object pairs
     seed: int
     engines: list[str] | None = None  # None: every registered engine that imports
-    buckets: list[str] | None = None  # None: all of harness.poses.BUCKETS
+    buckets: list[str] | None = None  # None: all of harness.workloads.poses.BUCKETS
 
 
 def object_pairs(names: list[str]) -> list[tuple[str, str]]:
@@ -350,7 +350,7 @@ def agreement_row(k: int, na: str, nb: str, n: int, seed: int, load_object) -> d
     """Pair k's (na, nb) agreement row: spq batched against coal on n random poses drawn with seed + k."""
     import spq
     from harness.engines.coal_engine import CoalEngine
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
 
     a, b = load_object(na), load_object(nb)
     pa, pb = random_poses(n, seed + k, a.bounding_radius() + b.bounding_radius())

@@ -191,7 +191,7 @@ def robot_scene(robot: str):
 
     path = Path(__file__).resolve().parent.parent / "scenes" / f"{robot}.toml"
     if path.is_file():
-        from harness.scene_file import build_scene, read_scene_file
+        from harness.workloads.scene_file import build_scene, read_scene_file
 
         return build_scene(read_scene_file(path)), f"scenes/{robot}.toml"
     files = robot_files(robot)
@@ -220,7 +220,7 @@ def body_item(scene, body, kind: str, body_pose, tolerance: float, cache: dict, 
 
 
 def closest_posture(robot: str, steps: int, seed: int, closest_pairs: int, tolerance: float) -> ClosestPosture:
-    from harness.robot_poses import smooth_trajectory
+    from harness.workloads.robot_poses import smooth_trajectory
     from spq.kernels.gjk import OUT_DISTANCE, OUT_STATUS, SEPARATED
 
     scene, _ = robot_scene(robot)
@@ -296,7 +296,7 @@ def penetration(name_a: str, name_b: str, r: float, R: float, depth: float, seed
     (random rotation, along a random direction) so that spq's signed distance is -depth (m)."""
     import spq
     from datasets import load_object
-    from harness.poses import random_rotations
+    from harness.workloads.poses import random_rotations
 
     hull_a, hull_b = load_object(name_a), load_object(name_b)
     A = spq.STPBV.from_points(hull_a.vertices, r, R)

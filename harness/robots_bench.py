@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from harness import robot_bench as rb
-from harness.robot_poses import random_configurations, smooth_trajectory
+from harness.workloads.robot_poses import random_configurations, smooth_trajectory
 from spq.kernels.gjk import OUT_DISTANCE, OUT_STATUS, OVERLAPPING, SEPARATED
 
 POLICIES = ("pch", "auto")

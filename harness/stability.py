@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 import spq
-from harness.poses import pose_matrix, random_rotations
+from harness.workloads.poses import pose_matrix, random_rotations
 from harness.references.minkowski import MinkowskiReference, reference_distance
 
 AMBIGUOUS_BAND = 1e-9  # m

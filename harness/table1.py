@@ -17,7 +17,7 @@ import pandas as pd
 
 import spq
 from harness.bench import best_times
-from harness.poses import random_poses
+from harness.workloads.poses import random_poses
 
 PAPER_QPS = {  # ICRA 2009 Table I, HRP-2 link of 300 vertices, Pentium 4 3.8 GHz, C++
     ("PCH", "PCH"): 795123, ("STP", "PCH"): 584567, ("STP", "STP"): 525394,

@@ -1,7 +1,7 @@
 """Trade-offs: speed against accuracy (``spq tradeoff``) and the STP-BV big radius R (``spq rtradeoff``).
 
 ``tradeoff``: one suite of distance-controlled, separated poses for two links, with exact reference
-distances (:func:`harness.poses.bucket_suite`). The engines that expose a tolerance (spq: ``tol`` =
+distances (:func:`harness.workloads.poses.bucket_suite`). The engines that expose a tolerance (spq: ``tol`` =
 ``rel_tol``; coal: ``gjk_tolerance``) are swept; each setting is timed on the same poses (best of
 ``repeats``) and its distances compared to the reference (max and median absolute error). python-fcl
 and pybullet (margin 0 and its default margin) run once each at their own settings.
@@ -83,7 +83,7 @@ def run_tradeoff(config: TradeoffConfig, load_object, progress: bool = False):
     from harness.engines import available_engines
     from harness.engines.coal_engine import CoalEngine
     from harness.engines.spq_engine import SpqEngine
-    from harness.poses import bucket_suite
+    from harness.workloads.poses import bucket_suite
 
     a, b = load_object(config.object_a), load_object(config.object_b)
     suite = bucket_suite(a, b, config.per_bucket, config.seed, buckets=list(config.buckets))
@@ -250,7 +250,7 @@ def run_rtradeoff(config: RTradeoffConfig, load_object, progress: bool = False) 
     from scipy.spatial import ConvexHull
     from tqdm import tqdm
 
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
     from harness.table1 import monte_carlo_volume
 
     link = load_object(config.object_name)

@@ -3,7 +3,7 @@ own client with the package: nothing is fetched from the network).
 
 Two subjects:
 
-- a robot scene file (scenes/*.toml, read with harness.scene_file): every body with its bounding volume
+- a robot scene file (scenes/*.toml, read with harness.workloads.scene_file): every body with its bounding volume
   (coloured by kind; STP-BV patches by kind too), a slider per joint, a slider through the file's
   configurations (starting at the one where the bodies come closest without overlapping), live
   distances of the closest pairs with their witness segments, and the bounding volume of each body;
@@ -97,7 +97,7 @@ class SceneView:
     shows, for tests: the configuration, the closest pairs and the kinds drawn."""
 
     def __init__(self, server, scene_path, tolerance: float = DEFAULT_TOLERANCE, pairs_shown: int = 5):
-        from harness import scene_file as sf
+        from harness.workloads import scene_file as sf
 
         self.server = server
         self.spec = sf.read_scene_file(scene_path)

@@ -126,7 +126,7 @@ def arm_sweep():
 
     import spq
     from datasets.robots import ROBOTS
-    from harness import scene_run as sr
+    from harness.workloads import scene_run as sr
 
     files = ROBOTS["kuka_iiwa"]
     scene = spq.Scene.from_urdf(files.urdf, mesh_root=files.mesh_root, policy="pch")
@@ -147,14 +147,14 @@ def assert_same_sweep(serial, spread) -> None:
 
 
 def test_a_cold_scene_sweep_on_threads_equals_the_serial_run(arm_sweep):
-    from harness import scene_run as sr
+    from harness.workloads import scene_run as sr
 
     scene, qs, serial = arm_sweep
     assert_same_sweep(serial, sr.run_scene_spread(scene, qs, prune=0.05, workers=2))
 
 
 def test_a_cold_scene_sweep_on_a_dask_local_cluster_equals_the_serial_run(arm_sweep, dask_scheduler):
-    from harness import scene_run as sr
+    from harness.workloads import scene_run as sr
 
     scene, qs, serial = arm_sweep
     assert_same_sweep(serial, sr.run_scene_spread(scene, qs, prune=0.05, scheduler=dask_scheduler))

@@ -75,7 +75,7 @@ def test_moving_b_by_the_penetration_vector_makes_the_pair_touch():
 
 def test_the_closest_posture_is_the_least_distance_without_overlap():
     from harness import pictures as pic
-    from harness.robot_poses import smooth_trajectory
+    from harness.workloads.robot_poses import smooth_trajectory
 
     posture = pic.closest_posture("kuka_iiwa", 60, 0, 3, 3e-3)
     scene, _ = pic.robot_scene("kuka_iiwa")

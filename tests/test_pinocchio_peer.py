@@ -11,7 +11,7 @@ pytest.importorskip("pinocchio", reason="pin not installed (pip install pin)")
 from datasets.robots import robot_files  # noqa: E402
 from harness import pinocchio_peer as pp  # noqa: E402
 from harness.robot_bench import RobotBenchConfig, load_scene  # noqa: E402
-from harness.robot_poses import random_configurations  # noqa: E402
+from harness.workloads.robot_poses import random_configurations  # noqa: E402
 
 pytestmark = pytest.mark.engines
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from datasets import load_object
-from harness.poses import BUCKETS, PoseSuite, body_size, bucket_suite, pose_matrix, random_poses
+from harness.workloads.poses import BUCKETS, PoseSuite, body_size, bucket_suite, pose_matrix, random_poses
 from harness.references.minkowski import reference_distance
 
 # Separated buckets must equal their target to 1e-12 relative; at the closest bucket (1e-4 L, ~2e-5 m

@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 import spq
 from datasets import load_object
-from harness.poses import bucket_suite, pose_matrix
+from harness.workloads.poses import bucket_suite, pose_matrix
 from harness.references.minkowski import MinkowskiReference, reference_distance
 from spq.scene import Scene
 
@@ -335,7 +335,7 @@ def test_patch_rounds_skipped_where_the_hulls_overlap_could_not_have_closed():
 
     require_shared_datasets()
     from harness.robot_bench import RobotBenchConfig, load_scene
-    from harness.robot_poses import random_configurations
+    from harness.workloads.robot_poses import random_configurations
     from spq.kernels.batch import F_MARGIN_A, F_MARGIN_B, I_KIND_A, I_KIND_B
     from spq.kernels.gjk import (OUT_DISTANCE, OUT_NORMAL, OUT_SIZE, OUT_STATUS, OVERLAPPING, PROBE_END, PROBE_ROW,
                                  WARM_SIZE)

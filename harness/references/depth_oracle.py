@@ -43,7 +43,7 @@ STARTS = 400  # Fibonacci directions searched before polishing
 POLISH = 4  # SLSQP runs from the best distinct starts
 SAME_MINIMUM = 1e-6  # rad: polishes ending within this of each other found the same minimum
 OVERLAP_BUCKETS = {"overlap-1e-4": 1e-4, "overlap-1e-3": 1e-3, "overlap-1e-2": 1e-2, "overlap-1e-1": 1e-1}
-"""Bucket -> depth in units of the body size L = (r_A + r_B) / 2 (as harness.poses.BUCKETS)."""
+"""Bucket -> depth in units of the body size L = (r_A + r_B) / 2 (as harness.workloads.poses.BUCKETS)."""
 AGREE = 1e-9  # m: a suite pose is kept if the oracle's depth there is its target within this
 
 

@@ -50,7 +50,7 @@ def run(config: Config) -> Output:
              "features: patches (stp.n_patches). volume_excess: Monte Carlo volume (harness.table1.monte_carlo_volume, "
              f"{cfg.volume_samples} samples, seed {config.seed}, the same box and points for every R) / hull volume "
              f"({facts['hull_volume']:.6g} m^3, qhull) - 1. queries_per_s: spq.distances STP-PCH (the STP-BV against "
-             f"the link's hull) on {cfg.poses} random poses (harness.poses.random_poses, ±{cfg.translation_range} m), "
+             f"the link's hull) on {cfg.poses} random poses (harness.workloads.poses.random_poses, ±{cfg.translation_range} m), "
              f"default tolerance, best of {cfg.repeats}. witness_lipschitz: max |Δp| / step of the witness points "
              "(m/rad) for STP-PCH on harness.continuity's parallel_faces trajectory at one step (step_rad), on a "
              f"{cfg.grid}-point grid plus points straddling the {cfg.jumps} largest witness jumps.")

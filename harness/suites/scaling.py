@@ -94,7 +94,7 @@ def run(config: Config) -> Output:
     import spq
     from datasets import load_object
     from datasets.robots import robot_files
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
     from harness.report.meta import run_metadata
     from harness.suites import crosscheck
     from threadpoolctl import threadpool_limits

@@ -33,7 +33,7 @@ def run(config: Config) -> Output:
                         queries=len(suite), repeats=cfg.repeats, spq_tols=list(cfg.spq_tols),
                         coal_tols=list(cfg.coal_tols), seconds=round(time.perf_counter() - start, 1))
     notes = (f"{cfg.object_a} against {cfg.object_b}, {len(suite)} separated distance-controlled poses "
-             f"(harness.poses.bucket_suite, buckets {', '.join(cfg.buckets)}, {cfg.per_bucket} each, seed "
+             f"(harness.workloads.poses.bucket_suite, buckets {', '.join(cfg.buckets)}, {cfg.per_bucket} each, seed "
              f"{config.seed}; reference distances {suite.ref_distance.min():.3g} to {suite.ref_distance.max():.3g} m). "
              "All engines on the same poses in the same run, best of "
              f"{cfg.repeats} timed runs after a warm-up on 8 poses. spq: tol = rel_tol = tolerance (stops when "

@@ -20,7 +20,7 @@ Instead of ``robot``: ``urdf = "path"`` with optional ``convex_dir`` (qhull hull
 per mesh ``NAME.ext``) and ``mesh_root`` (the folder ``package://PKG/...`` mesh names resolve
 against); relative paths are relative to the scene file's folder, as is the CSV ``path`` of a
 ``file`` pose source (header: joint names in any order, one configuration per row; see
-:func:`harness.robot_poses.read_configurations`). Optional everywhere: ``tol``, ``rel_tol``,
+:func:`harness.workloads.robot_poses.read_configurations`). Optional everywhere: ``tol``, ``rel_tol``,
 ``max_iter`` (the GJK stopping rule of :class:`spq.Scene`), and in ``[poses]`` ``coherent`` (warm
 starts from one configuration to the next; default true for a trajectory, false otherwise) and
 ``prune`` (m: skip pairs whose bounding spheres are farther apart). Unknown keys, wrong types and
@@ -58,7 +58,7 @@ COHERENT_DEFAULT = {"random": False, "trajectory": True, "file": False}
 @dataclass(frozen=True)
 class PoseSpec:
     """Where the configurations come from: ``kind`` 'random' (``count`` uniform draws within the
-    limits), 'trajectory' (``steps`` along harness.robot_poses.smooth_trajectory) or 'file' (CSV at
+    limits), 'trajectory' (``steps`` along harness.workloads.robot_poses.smooth_trajectory) or 'file' (CSV at
     ``path``); ``seed`` of the seeded kinds; ``coherent``: warm-start each pair from the previous
     configuration; ``prune``: skip pairs whose bounding spheres are more than this far apart (m),
     None to query every pair."""
@@ -322,7 +322,7 @@ def build_scene(spec: SceneSpec) -> Scene:
 
 def scene_configurations(spec: SceneSpec, model: RobotModel) -> np.ndarray:
     """(n, ndof) configurations of the scene file's pose source, checked against the joint limits."""
-    from harness.robot_poses import random_configurations, read_configurations, smooth_trajectory
+    from harness.workloads.robot_poses import random_configurations, read_configurations, smooth_trajectory
 
     poses = spec.poses
     if poses.kind == "random":
