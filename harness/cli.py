@@ -100,7 +100,7 @@ def cmd_report(args) -> int:
 def cmd_scene(args) -> int:
     from harness.workloads import scene_file as sf
     from harness.workloads import scene_run as sr
-    from harness.cluster import check_scheduler, describe
+    from harness.parallel.cluster import check_scheduler, describe
     from spq.workers import check_workers
 
     check_workers(args.workers)

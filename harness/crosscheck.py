@@ -176,7 +176,7 @@ class Task:
 def _judged_engines(names: tuple, plugins: tuple) -> dict:
     """The engines a worker process judges: registered as in the parent, native ones in children
     (harness.engines.isolated); built once per process and kept for its later tasks."""
-    from harness.cluster import check_may_start_children, process_cache
+    from harness.parallel.cluster import check_may_start_children, process_cache
     from harness.engines import register_plugin
     from harness.engines.isolated import isolated
 
@@ -235,12 +235,12 @@ def run_spread(config: CrosscheckConfig, engine_names: list[str], plugins: dict,
                scheduler: str | None, progress: bool = True, load_object=None,
                runner=None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
     """The crosscheck table (and the agreement table, or None) of :func:`run` and :func:`agreement`,
-    computed by tasks on ``workers`` processes or a Dask cluster (harness.cluster), or on the open
-    ``runner`` (a harness.cluster.TaskRunner, kept open): equal to the serial run's, each pair's poses
+    computed by tasks on ``workers`` processes or a Dask cluster (harness.parallel.cluster), or on the open
+    ``runner`` (a harness.parallel.cluster.TaskRunner, kept open): equal to the serial run's, each pair's poses
     drawn from its own seed as there."""
     from contextlib import nullcontext
 
-    from harness.cluster import TaskRunner
+    from harness.parallel.cluster import TaskRunner
 
     todo, order = tasks(config, engine_names, plugins, agreement_poses, load_object)
     bar = tqdm(total=len(todo), desc="crosscheck tasks", unit="task", disable=not progress)

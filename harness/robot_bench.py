@@ -234,7 +234,7 @@ def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_
     and overlap verdicts that disagree outside a 1e-6 m band. An empty table's single row says why
     pinocchio did not run."""
     from datasets.robots import robot_files
-    from harness import pinocchio_peer as pp
+    from harness.engines import pinocchio_peer as pp
 
     try:
         version = pp.version()

@@ -167,7 +167,7 @@ def coal_agreement(scene, qs: np.ndarray, spq_out: np.ndarray) -> tuple[float, i
     import coal
 
     from harness.engines.coal_engine import CoalPair
-    from harness.pinocchio_peer import coal_geometry
+    from harness.engines.pinocchio_peer import coal_geometry
 
     request = coal.DistanceRequest()
     request.enable_signed_distance = True
@@ -250,7 +250,7 @@ def _measure(name: str, config, scenes: dict, row: dict, notes: list) -> None:
     qs = random_configurations(model, config.configs, config.seed)
     peers = {}
     try:
-        from harness import pinocchio_peer as pp
+        from harness.engines import pinocchio_peer as pp
 
         peers = {v: pp.build(pch, robot_urdf(name), v) for v in config.pin_variants}
         q_pin = [peers[config.pin_variants[0]].configuration(q) for q in qs]

@@ -679,9 +679,9 @@ def run(config: StabilityConfig, load_object, progress: bool = False, workers: i
     answer from child processes (harness.engines.isolated): a crash fails its queries, not the run.
 
     workers > 1 or a scheduler: every case is a task (its poses drawn here, as in the serial run)
-    run on that many processes or on a Dask cluster (harness.cluster); the tables are the serial
+    run on that many processes or on a Dask cluster (harness.parallel.cluster); the tables are the serial
     run's but for the time_us column."""
-    from harness.cluster import check_scheduler
+    from harness.parallel.cluster import check_scheduler
     from harness.engines import ENGINE_FACTORIES, PLUGIN_SPECS, available_engines
     from harness.engines.isolated import isolated
     from spq.workers import check_workers
@@ -749,8 +749,8 @@ class CaseTask:
 
 
 def _task_engines(task: CaseTask) -> dict:
-    """The engines of a task, built once per worker process (see harness.cluster.process_cache)."""
-    from harness.cluster import check_may_start_children, process_cache
+    """The engines of a task, built once per worker process (see harness.parallel.cluster.process_cache)."""
+    from harness.parallel.cluster import check_may_start_children, process_cache
     from harness.engines import available_engines, register_plugin
     from harness.engines.isolated import isolated
 
@@ -794,7 +794,7 @@ def _run_spread(cases: list, template: CaseTask | None, workers: int, scheduler:
     """run_cases' table, each case a task (see :class:`CaseTask`) on workers or a Dask cluster. cases:
     Cases (each made a task from template) or, template None, CaseTasks (hand-built and generated, the
     table then as run's: the hand-built rows, then the generated ones, in task order)."""
-    from harness.cluster import run_tasks
+    from harness.parallel.cluster import run_tasks
 
     tasks = cases if template is None else [replace(template, case=c) for c in cases]
 

@@ -1,4 +1,4 @@
-"""Suites spread over processes or a Dask cluster (harness.cluster): the oracle is the serial run of
+"""Suites spread over processes or a Dask cluster (harness.parallel.cluster): the oracle is the serial run of
 the same suite, whose tables the spread run must reproduce exactly (timing columns aside)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import time
 import pandas as pd
 import pytest
 
-from harness import cluster
+from harness.parallel import cluster
 from harness.suites import crosscheck
 
 TIMING = ("time_us", "median_time_us")  # wall times: never equal between two runs, serial or not
@@ -54,7 +54,7 @@ def require_dask():
 
 @pytest.fixture(scope="module")
 def dask_scheduler():
-    """The address of a Dask LocalCluster of 2 processes (harness.cluster's, as --scheduler local starts
+    """The address of a Dask LocalCluster of 2 processes (harness.parallel.cluster's, as --scheduler local starts
     it), shared by the tests that run on it: they reach it as a remote cluster, by address."""
     require_dask()
     with cluster.dask_client(cluster.LOCAL, 2) as (client, _):

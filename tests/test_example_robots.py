@@ -169,7 +169,7 @@ def test_spq_distances_agree_with_coal_on_loaded_robots(name):
     """Oracle: coal (another GJK/EPA, its own Sphere/Box and Convex) at the same body poses."""
     coal = pytest.importorskip("coal")
     from harness.engines.coal_engine import CoalPair
-    from harness.pinocchio_peer import coal_geometry
+    from harness.engines.pinocchio_peer import coal_geometry
     from harness.workloads.robot_poses import random_configurations
 
     pch = er.load_scene(name)
@@ -194,7 +194,7 @@ def test_spq_distances_agree_with_coal_on_loaded_robots(name):
 
 def test_pinocchio_places_the_loaded_bodies_where_spq_does():
     pytest.importorskip("pinocchio")
-    from harness import pinocchio_peer as pp
+    from harness.engines import pinocchio_peer as pp
     from harness.workloads.robot_poses import random_configurations
 
     scene = er.load_scene("a1")

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("pinocchio", reason="pin not installed (pip install pin)")
 
 from datasets.robots import robot_files  # noqa: E402
-from harness import pinocchio_peer as pp  # noqa: E402
+from harness.engines import pinocchio_peer as pp  # noqa: E402
 from harness.robot_bench import RobotBenchConfig, load_scene  # noqa: E402
 from harness.workloads.robot_poses import random_configurations  # noqa: E402
 

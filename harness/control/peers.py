@@ -58,7 +58,7 @@ class PinModel:
 
     def __init__(self, scene, urdf, q0, frozen, hands):
         pin = _need("pinocchio", "pin")
-        from harness.pinocchio_peer import coal_geometry
+        from harness.engines.pinocchio_peer import coal_geometry
 
         model = pin.buildModelFromUrdf(str(urdf))
         geometry = pin.GeometryModel()

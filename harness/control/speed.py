@@ -71,10 +71,10 @@ def _step_fn(controller, task, qs):
 
 
 def _fastest_pin_variant(source) -> str:
-    """Set pinocchio's coal requests to their fastest GJK variant on this run (harness.pinocchio_peer)."""
+    """Set pinocchio's coal requests to their fastest GJK variant on this run (harness.engines.pinocchio_peer)."""
     import coal
 
-    from harness.pinocchio_peer import VARIANTS
+    from harness.engines.pinocchio_peer import VARIANTS
 
     best, name = np.inf, "default"
     q = source.pm.to_pin(source.pm.q_template)

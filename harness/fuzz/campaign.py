@@ -1,5 +1,5 @@
 """A fuzz campaign: cases drawn round-robin from the families, judged in tasks on this process, local
-processes or a Dask cluster (harness.cluster), the counts checkpointed after every round.
+processes or a Dask cluster (harness.parallel.cluster), the counts checkpointed after every round.
 
 Case k (k = 0, 1, 2, ...) is family ``families[k % len(families)]`` drawn with
 ``np.random.default_rng([seed, k])``, so a campaign is a pure function of its seed and families, and a
@@ -83,8 +83,8 @@ class State:
 
 
 def _peers(names):
-    """{name: isolated engine} for the peers, built once per process (harness.cluster.process_cache)."""
-    from harness.cluster import process_cache
+    """{name: isolated engine} for the peers, built once per process (harness.parallel.cluster.process_cache)."""
+    from harness.parallel.cluster import process_cache
 
     def build():
         from harness.engines import available_engines
@@ -151,7 +151,7 @@ def run(config: CampaignConfig, state_path=None, budget_s: float | None = None, 
         progress: bool = False, runner=None) -> State:
     """Run (or resume) the campaign until budget_s seconds or max_queries spq queries in total.
 
-    The workers (harness.cluster.TaskRunner: this process, local processes or a Dask cluster) are
+    The workers (harness.parallel.cluster.TaskRunner: this process, local processes or a Dask cluster) are
     started once for the whole campaign, or given as ``runner`` (open, kept open): each builds its
     peers and loads spq's kernels once. Rounds follow one another without a pause: a worker free
     at the end of a round takes a task of the next while the round's last tasks run, and a round
@@ -161,7 +161,7 @@ def run(config: CampaignConfig, state_path=None, budget_s: float | None = None, 
 
     from tqdm import tqdm
 
-    from harness.cluster import TaskRunner
+    from harness.parallel.cluster import TaskRunner
 
     if budget_s is None and max_queries is None:
         raise ValueError("a campaign needs a time budget (seconds) or a query count to stop at")

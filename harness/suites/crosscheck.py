@@ -35,7 +35,7 @@ class Config:
     agreement_poses: int = 500_000  # random poses on which spq is compared with coal (0: none)
     progress: bool = False
     workers: int = 1  # processes (> 1: a local pool, or the Dask LocalCluster's size with scheduler "local")
-    scheduler: str | None = None  # None, "local" or a Dask scheduler address (harness.cluster)
+    scheduler: str | None = None  # None, "local" or a Dask scheduler address (harness.parallel.cluster)
 
 
 def run(config: Config) -> Output:
@@ -45,7 +45,7 @@ def run(config: Config) -> Output:
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
-    from harness.cluster import check_scheduler, describe
+    from harness.parallel.cluster import check_scheduler, describe
     from spq.workers import check_workers
 
     start = time.perf_counter()

@@ -32,7 +32,7 @@ class Config:
 
 
 def run(config: Config) -> Output:
-    from harness.cluster import check_scheduler, describe
+    from harness.parallel.cluster import check_scheduler, describe
     from harness.fuzz import campaign as cp
     from harness.fuzz.families import FAMILY_NOTES
     from harness.fuzz.judge import BAND, PEER_TOL, SLACK_ULPS

@@ -13,7 +13,7 @@ from harness.suites import Figure, Output, Table, frame_lines
 
 FULL = {"configs": 100, "steps": 200, "engine_configs": 5}  # None in the Config means these (or QUICK)
 QUICK = {"configs": 10, "steps": 30, "engine_configs": 2}
-ALL_VARIANTS = ("default", "cached-guess", "nesterov", "nesterov-cached")  # harness.pinocchio_peer.VARIANTS
+ALL_VARIANTS = ("default", "cached-guess", "nesterov", "nesterov-cached")  # harness.engines.pinocchio_peer.VARIANTS
 
 
 @dataclass

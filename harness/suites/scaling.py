@@ -6,7 +6,7 @@ check that the results are the same.
 - a cold robot-scene sweep: ``Scene.distances_many`` over random configurations, threads; compared
   bit for bit;
 - the crosscheck suite (every engine against the exact reference, and spq against coal), on N local
-  processes (harness.cluster); its tables compared exactly (timing columns aside);
+  processes (harness.parallel.cluster); its tables compared exactly (timing columns aside);
 - the same crosscheck on a Dask LocalCluster of N processes, once, compared with the serial run.
 
 Each round times the one-worker run, then the N-worker run, so that a busy spell of a shared machine

@@ -25,14 +25,14 @@ class Config:
     generated_cases: int = 10_000  # how many in a full run (quick: the first pose of one draw per family)
     progress: bool = False
     workers: int = 1  # processes (> 1: a local pool, or the Dask LocalCluster's size with scheduler "local")
-    scheduler: str | None = None  # None, "local" or a Dask scheduler address (harness.cluster)
+    scheduler: str | None = None  # None, "local" or a Dask scheduler address (harness.parallel.cluster)
 
 
 def run(config: Config) -> Output:
     from datasets import load_object
     from harness import stability as st
     from harness.report.meta import run_metadata
-    from harness.cluster import describe
+    from harness.parallel.cluster import describe
     from harness.report.tables import markdown_table
 
     start = time.perf_counter()

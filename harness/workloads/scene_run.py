@@ -111,12 +111,12 @@ def run_scene_spread(scene: Scene, qs: np.ndarray, prune: float | None = None, w
                      scheduler: str | None = None, progress: bool = False) -> SceneRun:
     """:func:`run_scene` of a cold sweep, its configurations in blocks of SPREAD_BLOCK: with no scheduler,
     one call per block on ``workers`` threads here; with one, a task per block (the scene pickled into
-    it) on a Dask cluster (harness.cluster). Every configuration's results equal the serial run's bit
+    it) on a Dask cluster (harness.parallel.cluster). Every configuration's results equal the serial run's bit
     for bit (a cold query depends on its own configuration alone); ``seconds`` holds each block's wall
     time shared out over its configurations, a throughput, not the time of a call per configuration."""
     from tqdm import tqdm
 
-    from harness.cluster import check_scheduler, run_tasks
+    from harness.parallel.cluster import check_scheduler, run_tasks
     from spq.workers import check_workers
 
     workers, scheduler = check_workers(workers), check_scheduler(scheduler)

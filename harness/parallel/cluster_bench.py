@@ -1,8 +1,8 @@
-"""One Dask worker against N on the same job, side by side: ``python -m harness.cluster_bench``.
+"""One Dask worker against N on the same job, side by side: ``python -m harness.parallel.cluster_bench``.
 
 The jobs are the crosscheck (harness.crosscheck.run_spread: every engine against the exact
 reference, and spq against coal) and a fuzz campaign (harness.fuzz.campaign.run), each run through
-harness.cluster.TaskRunner as ``spq crosscheck`` and ``spq fuzz`` run them with ``--scheduler local``.
+harness.parallel.cluster.TaskRunner as ``spq crosscheck`` and ``spq fuzz`` run them with ``--scheduler local``.
 Both LocalClusters (1 worker and N) are started first and every worker warmed up (its engines built,
 spq's compiled code loaded: minutes when the kernels changed and compile anew), so that the timed
 runs hold the job alone; then each round times the job on 1 worker, then on N, and the best of the
@@ -166,7 +166,7 @@ def measure(job, workers: int, repeats: int, serial: bool, say) -> list[Timing]:
     """[1 Dask worker, N Dask workers(, this process)] timings of ``job`` (module docstring)."""
     from contextlib import ExitStack
 
-    from harness.cluster import LOCAL, TaskRunner
+    from harness.parallel.cluster import LOCAL, TaskRunner
 
     timings = [Timing("1 Dask worker", 1), Timing(f"{workers} Dask workers", workers)]
     if serial:
@@ -211,7 +211,7 @@ def rows(job, timings: list[Timing]) -> pd.DataFrame:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m harness.cluster_bench", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m harness.parallel.cluster_bench", description=__doc__.split("\n\n")[0])
     p.add_argument("--jobs", nargs="+", choices=["crosscheck", "fuzz"], default=["crosscheck", "fuzz"])
     p.add_argument("--workers", type=int, default=2, help="the bigger cluster's workers (default 2)")
     p.add_argument("--repeats", type=int, default=2, help="interleaved rounds, best kept (default 2)")
