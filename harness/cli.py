@@ -89,7 +89,7 @@ def cmd_check(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from harness.report_suite import run_report
+    from harness.report.assemble import run_report
 
     start = time.perf_counter()
     paths = run_report(Path(args.out), quick=args.quick, seed=args.seed)
@@ -163,7 +163,7 @@ def cmd_scene(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from harness.viewer import MissingViewer, serve
+    from harness.report.viewer import MissingViewer, serve
 
     try:
         viewer = serve(args.targets, host=args.host, port=args.port, tolerance=args.tolerance, r=args.r, R=args.R)
