@@ -160,7 +160,7 @@ def test_the_same_qp_fed_by_pinocchio_or_mujoco_commands_what_spq_pch_commands(s
     MuJoCo (mj_geomDistance, mj_jac) on the same hulls commands the same q̇ as fed by spq's PCH scene."""
     pytest.importorskip("pinocchio")
     pytest.importorskip("mujoco")
-    from harness.control.bench import run_method
+    from harness.control.runs import run_method
 
     params = ControlParams()
     task = make_tasks(scenes.base, ROBOT, 1, seed=3)[0]

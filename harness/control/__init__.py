@@ -8,4 +8,8 @@ collision-avoiding differential-IK controller.
   active rows turn, the commands' jumps by cause, time per step.
 - :mod:`harness.control.peers`: pink's SelfCollisionBarrier and mink's CollisionAvoidanceLimit in their
   own solvers, and the same damper QP fed by pinocchio's or MuJoCo's distances.
+- :mod:`harness.control.scenes`: one robot read once, one scene per bounding-volume policy.
+- :mod:`harness.control.runs`: every task of every robot with every method, and the runs' summary
+  (the suite's entry, its config and tables, is :mod:`harness.suites.control`).
+- :mod:`harness.control.speed`: what a control step costs, side by side in one process.
 """

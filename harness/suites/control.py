@@ -33,7 +33,7 @@ SHOWN = ["robot", "method", "runs", "min_distance_m_worst", "steps_below_ds", "f
 
 
 def run(config: Config) -> Output:
-    from harness.control import bench
+    from harness.control import runs
     from harness.control.controller import QP_EPS_ABS, QP_SOLVER, ControlParams
     from harness.control.metrics import FEATURE_JUMP_M, FEATURE_JUMP_RATIO, SPIKE_RAD_S2
     from harness.control.peers import MINK_SOLVER
@@ -46,11 +46,11 @@ def run(config: Config) -> Output:
         raise ValueError(f"control suite: tasks must be >= 1; got {config.tasks}")
     params = ControlParams()
     start = time.perf_counter()
-    result = bench.run(config.robots, config.tasks, config.steps, config.seed, config.methods, params,
+    result = runs.run(config.robots, config.tasks, config.steps, config.seed, config.methods, params,
                        progress=config.progress, slow_peer_tasks=config.pink_tasks)
-    table = bench.summary(result.runs)
-    meta = run_metadata(command="spq bench control", robots=bench.check_robots(config.robots), tasks=config.tasks,
-                        steps=config.steps, seed=config.seed, methods=bench.check_methods(config.methods),
+    table = runs.summary(result.runs)
+    meta = run_metadata(command="spq bench control", robots=runs.check_robots(config.robots), tasks=config.tasks,
+                        steps=config.steps, seed=config.seed, methods=runs.check_methods(config.methods),
                         pink_tasks=config.pink_tasks,
                         params=params.describe(), qp_solver=f"{QP_SOLVER} via qpsolvers (eps_abs {QP_EPS_ABS:g}), "
                         f"warm-started", mink_solver=MINK_SOLVER, feature_jump_m=FEATURE_JUMP_M, feature_jump_ratio=FEATURE_JUMP_RATIO,
@@ -64,19 +64,19 @@ def run(config: Config) -> Output:
     out.raw["control_robots.csv"] = result.robots
     text = [f"# Control: what each bounding volume does to a collision-avoiding controller", "", notes, "",
             "## Robots", "", markdown_table(result.robots) if not result.robots.empty else "none", "",
-            "## What ran", "", *[f"- {line}" for line in bench.which_ran(result.runs)], "",
+            "## What ran", "", *[f"- {line}" for line in runs.which_ran(result.runs)], "",
             "## Per robot and method (medians and worst over the tasks)", "",
             markdown_table(table) if not table.empty else "no run finished", "",
-            *bench.continuity_note(table), "Run: `" + _json(meta) + "`", ""]
+            *runs.continuity_note(table), "Run: `" + _json(meta) + "`", ""]
     out.documents["control.md"] = "\n".join(text)
     out.raw["control.csv"] = table
     out.figures = [Figure("control_qdot_traces.png", lambda p: _traces_chart(result, p)),
                    Figure("control_acceleration.png", lambda p: _acceleration_chart(result, p)),
                    Figure("control_time.png", lambda p: _time_chart(table, p))]
     shown = [c for c in SHOWN if c in table.columns]
-    out.lines = [*frame_lines(result.robots), "", *bench.which_ran(result.runs), "",
+    out.lines = [*frame_lines(result.robots), "", *runs.which_ran(result.runs), "",
                  *(frame_lines(table[shown]) if not table.empty else ["no run finished"]),
-                 "", *[l for l in bench.continuity_note(table) if l]]
+                 "", *[l for l in runs.continuity_note(table) if l]]
     if config.speed:
         _add_speed(out, config, params)
     return out
@@ -84,11 +84,11 @@ def run(config: Config) -> Output:
 
 def _add_speed(out: Output, config: Config, params) -> None:
     """control_speed.md/.csv: a control step timed side by side on one robot (harness/control/speed.py)."""
-    from harness.control import bench
+    from harness.control import runs
     from harness.control.speed import step_timing
     from harness.report.tables import markdown_table
 
-    robot = bench.check_robots(config.robots)[0]
+    robot = runs.check_robots(config.robots)[0]
     timing = step_timing(robot, steps=config.speed_steps, rounds=config.speed_rounds, seed=config.seed,
                          params=params, progress=config.progress)
     out.raw["control_speed.csv"] = timing.table
