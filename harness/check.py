@@ -117,7 +117,7 @@ def _finite_max(x) -> float:
 
 
 def accuracy_metrics(table: pd.DataFrame) -> list[Metric]:
-    """Metrics from a crosscheck table (harness.crosscheck.score's rows)."""
+    """Metrics from a crosscheck table (harness.suites.crosscheck.scoring.score's rows)."""
     out = []
     for (engine, bucket), g in table.groupby(["engine", "bucket"], sort=False):
         check = f"accuracy/{bucket}"

@@ -1,6 +1,6 @@
 """One Dask worker against N on the same job, side by side: ``python -m harness.parallel.cluster_bench``.
 
-The jobs are the crosscheck (harness.crosscheck.run_spread: every engine against the exact
+The jobs are the crosscheck (harness.suites.crosscheck.scoring.run_spread: every engine against the exact
 reference, and spq against coal) and a fuzz campaign (harness.fuzz.campaign.run), each run through
 harness.parallel.cluster.TaskRunner as ``spq crosscheck`` and ``spq fuzz`` run them with ``--scheduler local``.
 Both LocalClusters (1 worker and N) are started first and every worker warmed up (its engines built,
@@ -77,7 +77,7 @@ class CrosscheckJob:
 
     def __init__(self, per_bucket: int, agreement: int, seed: int, engines: list | None):
         from datasets import DEFAULT_OBJECTS
-        from harness import crosscheck as cc
+        from harness.suites.crosscheck import scoring as cc
         from harness.engines import available_engines
 
         plain = available_engines(engines)
@@ -93,7 +93,7 @@ class CrosscheckJob:
                 f"{len(self.engines)} engines ({', '.join(self.engines)}), {self.agreement} agreement poses")
 
     def warm(self, runner) -> float:
-        from harness.crosscheck import warm_worker
+        from harness.suites.crosscheck.scoring import warm_worker
 
         args = (tuple(self.engines), (), self.agreement > 0)
         if runner.scheduler is None:
@@ -101,7 +101,7 @@ class CrosscheckJob:
         return max(runner.on_each_worker(warm_worker, *args).values())
 
     def run(self, runner):
-        from harness.crosscheck import run_spread
+        from harness.suites.crosscheck.scoring import run_spread
 
         return run_spread(self.config, self.engines, {}, self.agreement, runner.workers, runner.scheduler,
                           progress=False, runner=runner)

@@ -1,12 +1,12 @@
 """The cross-check suite: every engine on the same distance-controlled poses, scored against the
-exact reference (harness.crosscheck), and spq against coal on random poses."""
+exact reference (harness.suites.crosscheck.scoring), and spq against coal on random poses."""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
-from harness import crosscheck as cc
+from harness.suites.crosscheck import scoring as cc
 from harness.engines.mujoco_engine import PIPELINE_NOTE as MUJOCO_PIPELINE
 from harness.suites import Output, Table, frame_lines
 
