@@ -12,7 +12,7 @@ A check run measures, with every engine it is given and at fixed seeds:
 - the other bounding volumes (spq): STP-BV and superellipsoid pairs against the independent depth
   oracle (:mod:`harness.references.depth_oracle`): largest error, failures, certified bounds missing it;
 - stability (every engine): wrong and failed verdicts on the stability and penetration families
-  (:mod:`harness.stability`, one pose per case);
+  (:mod:`harness.suites.stability.hard_cases`, one pose per case);
 - fuzz (spq, and coal, mujoco and bullet where they run): a small fuzz campaign (:mod:`harness.fuzz`),
   ``fuzz_cases`` cases of every family of :mod:`harness.fuzz.families` at ``fuzz_poses`` pose pairs
   each, spq queried unsigned and signed: per family and mode, spq's wrong, failed and disputed
@@ -104,7 +104,7 @@ class Metric:
 # measuring
 # ------------------------------------------------------------------------------------------
 def _tol(engine: str, depth: bool = False) -> tuple[float, float]:
-    from harness.stability import ENGINE_DEPTH_TOL, tolerance_of
+    from harness.suites.stability.hard_cases import ENGINE_DEPTH_TOL, tolerance_of
 
     return ENGINE_DEPTH_TOL.get(engine, tolerance_of(engine)) if depth else tolerance_of(engine)
 
@@ -159,7 +159,7 @@ def oracle_metrics(table: pd.DataFrame) -> list[Metric]:
 
 
 def stability_metrics(table: pd.DataFrame) -> list[Metric]:
-    """Metrics from a stability table (harness.stability.run_cases' rows)."""
+    """Metrics from a stability table (harness.suites.stability.hard_cases.run_cases' rows)."""
     out = []
     for (engine, family), g in table.groupby(["engine", "family"], sort=False):
         check = f"stability/{family}"
@@ -305,7 +305,7 @@ def results_document(metrics: list[Metric], config: CheckConfig, engines: dict, 
                      speed_floor: float = SPEED_FLOOR) -> dict:
     """The tidy results file: format, run metadata (versions, seeds, machine, tolerances), metrics."""
     from harness.report.meta import run_metadata
-    from harness.stability import ENGINE_DEPTH_TOL, ENGINE_TOL
+    from harness.suites.stability.hard_cases import ENGINE_DEPTH_TOL, ENGINE_TOL
 
     meta = run_metadata(command="spq check", seed=config.seed, seconds=round(seconds, 1), config=asdict(config),
                         engines={name: _version(e) for name, e in engines.items()},

@@ -1,6 +1,6 @@
 """The stability suite: every engine on the cases where distance methods are known to fail (touching,
 shallow and deep overlaps, scales, far from the origin, flat and needle bodies...), scored against the
-exact reference (harness.stability), with coal's DualityGap + Relative tolerance sweep, and on cases
+exact reference (harness.suites.stability.hard_cases), with coal's DualityGap + Relative tolerance sweep, and on cases
 generated from the fuzz campaign's families (harness.fuzz.families), scored against the exact
 reference or the fuzz campaign's independent oracle; a heat map shows where each engine fails."""
 
@@ -17,11 +17,11 @@ from harness.suites import Figure, Output, Table, frame_lines
 @dataclass
 class Config:
     seed: int = 0
-    engines: list[str] | None = None  # None: harness.stability.ENGINES (those that import)
+    engines: list[str] | None = None  # None: harness.suites.stability.hard_cases.ENGINES (those that import)
     quick: bool = False  # one pose per case and fewer sweeps
     fcl_gap: bool = True  # the fcl_box_gap_3 family
     coal_sweep: bool = True  # coal's DualityGap + Relative sweep (when coal runs)
-    generated: bool = True  # the cases generated from the fuzz families (harness.stability.generated_draw)
+    generated: bool = True  # the cases generated from the fuzz families (harness.suites.stability.hard_cases.generated_draw)
     generated_cases: int = 10_000  # how many in a full run (quick: the first pose of one draw per family)
     progress: bool = False
     workers: int = 1  # processes (> 1: a local pool, or the Dask LocalCluster's size with scheduler "local")
@@ -30,7 +30,7 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness import stability as st
+    from harness.suites.stability import hard_cases as st
     from harness.report.meta import run_metadata
     from harness.parallel.cluster import describe
     from harness.report.tables import markdown_table
@@ -137,7 +137,7 @@ HEATMAP_CAPTION = ("Share of the cases each engine answers wrong or not at all, 
 
 def generated_notes(generated) -> str:
     """What the generated cases are and how each verdict was reached, with this run's counts."""
-    from harness import stability as st
+    from harness.suites.stability import hard_cases as st
 
     spq_rows = generated[generated.engine == "spq"]
     kinds = spq_rows.reference.value_counts()
@@ -164,7 +164,7 @@ def generated_notes(generated) -> str:
 
 def heatmap(grid, path) -> None:
     """Families (rows: hand-built, a line, generated) x engines, colour: log10 share of bad cases, each
-    cell's bad/judged written in it (harness.stability.failure_grid)."""
+    cell's bad/judged written in it (harness.suites.stability.hard_cases.failure_grid)."""
     from harness.report.charts import failure_heatmap
 
     families = list(dict.fromkeys(grid.family))
