@@ -239,7 +239,7 @@ def _workers(text: str) -> int:
 
 
 def _cse(text: str) -> str:
-    """--cse: checked here (harness.table1.cse_spec's ValueError) so that a bad value stops the
+    """--cse: checked here (harness.suites.table1.bv_rates.cse_spec's ValueError) so that a bad value stops the
     command before the bodies are built; the suite parses it again."""
     from harness.suites.table1 import cse_spec
 

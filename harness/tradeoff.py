@@ -251,7 +251,7 @@ def run_rtradeoff(config: RTradeoffConfig, load_object, progress: bool = False) 
     from tqdm import tqdm
 
     from harness.workloads.poses import random_poses
-    from harness.table1 import monte_carlo_volume
+    from harness.suites.table1.bv_rates import monte_carlo_volume
 
     link = load_object(config.object_name)
     points = link.vertices

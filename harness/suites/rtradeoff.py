@@ -47,7 +47,7 @@ def run(config: Config) -> Output:
                         seconds=round(time.perf_counter() - start, 1))
     notes = (f"STP-BVs of {obj}'s {facts['points']} hull vertices, r = {cfg.r} m, R swept from just above "
              f"the smallest admissible R = r + enclosing radius = {facts['R_min']:.6g} m (log-spaced in R - R_min). "
-             "features: patches (stp.n_patches). volume_excess: Monte Carlo volume (harness.table1.monte_carlo_volume, "
+             "features: patches (stp.n_patches). volume_excess: Monte Carlo volume (harness.suites.table1.bv_rates.monte_carlo_volume, "
              f"{cfg.volume_samples} samples, seed {config.seed}, the same box and points for every R) / hull volume "
              f"({facts['hull_volume']:.6g} m^3, qhull) - 1. queries_per_s: spq.distances STP-PCH (the STP-BV against "
              f"the link's hull) on {cfg.poses} random poses (harness.workloads.poses.random_poses, ±{cfg.translation_range} m), "
