@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import tradeoff as tr
+from harness.suites.tradeoff import sweeps as tr
 from harness.cli import main
 
 

@@ -1,5 +1,5 @@
 """The R-tradeoff suite: what an STP-BV's big radius R trades (features, volume excess, query speed,
-witness smoothness), with a recommended R (harness.tradeoff)."""
+witness smoothness), with a recommended R (harness.suites.tradeoff.sweeps)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def run(config: Config) -> Output:
     import numpy as np
 
     from datasets import load_object
-    from harness import tradeoff as tr
+    from harness.suites.tradeoff import sweeps as tr
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 

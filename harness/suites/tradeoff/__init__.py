@@ -1,5 +1,5 @@
 """The tradeoff suite: speed against accuracy, every engine's tolerance swept on one suite of separated
-distance-controlled poses (harness.tradeoff)."""
+distance-controlled poses (harness.suites.tradeoff.sweeps)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness import tradeoff as tr
+    from harness.suites.tradeoff import sweeps as tr
     from harness.report.meta import run_metadata
 
     start = time.perf_counter()
