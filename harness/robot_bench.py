@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.bench import best_time
+from harness.suites.bench.throughput import best_time
 from harness.workloads.robot_poses import random_configurations, smooth_trajectory
 from spq.kernels.gjk import FAILED, OUT_DISTANCE, OUT_ITERATIONS, OUT_SIZE, OUT_STATUS, OVERLAPPING, SEPARATED
 from spq.scene import Scene

@@ -5,7 +5,7 @@ The CSE is the link's covering fit unless the config gives one (Table1Config.cse
 Pose distribution: the same as ``spq bench pch`` (uniformly random rotations, translations uniform
 in a cube of +-range metres for both bodies, seeded), so that separated and overlapping poses both
 occur; they are counted apart. Each figure is the best of ``repeats`` timed batched calls, the
-runs of all pairs and of coal taken in turn within each round (harness.bench.best_times).
+runs of all pairs and of coal taken in turn within each round (harness.suites.bench.throughput.best_times).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 import spq
-from harness.bench import best_times
+from harness.suites.bench.throughput import best_times
 from harness.workloads.poses import random_poses
 
 PAPER_QPS = {  # ICRA 2009 Table I, HRP-2 link of 300 vertices, Pentium 4 3.8 GHz, C++

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 import spq
-from harness.bench import best_time, timing_modes
+from harness.suites.bench.throughput import best_time, timing_modes
 from harness.report.charts import save_figure
 
 SEPARATED_BUCKETS = ("distant-1", "distant-0.5", "close-1e-1", "close-1e-2", "close-1e-3", "close-1e-4")

@@ -28,7 +28,7 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness import bench
+    from harness.suites.bench import throughput as bench
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
