@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.check import SECTIONS, SPEED_FLOOR, CheckConfig
+from harness.suites.check.gate import SECTIONS, SPEED_FLOOR, CheckConfig
 from harness.suites.table1 import CSE_FIT, preset_text
 
 DEFAULT_OUT = Path("reports")
@@ -183,7 +183,7 @@ def cmd_view(args) -> int:
 
 
 def cmd_history(args) -> int:
-    from harness import check as ck
+    from harness.suites.check import gate as ck
 
     table = ck.load_history(args.history)
     if table.empty or table.run.nunique() < 1:

@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness import check as ck
+from harness.suites.check import gate as ck
 from harness import cli
 from harness import engines as engines_mod
 

@@ -32,7 +32,7 @@ CHECK_BASELINE = Path(__file__).resolve().parent.parent / ".ci" / "check-baselin
 def check_config(quick: bool, seed: int, out: Path):
     """spq check against the committed baseline (if this is a source checkout), speed advisory, the
     run appended to the report's history."""
-    from harness.check import CheckConfig
+    from harness.suites.check.gate import CheckConfig
     from harness.suites import check
 
     history = str(out / "check_history.jsonl")
@@ -45,7 +45,7 @@ def check_config(quick: bool, seed: int, out: Path):
 
 
 def check_section(out: Path) -> Section:
-    from harness import check as ck
+    from harness.suites.check import gate as ck
 
     doc = ck.load_results(out / "check.json")
     metrics = pd.DataFrame(doc["metrics"])

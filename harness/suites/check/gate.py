@@ -1,6 +1,6 @@
 """``spq check``: the harness as a gate. A fixed-seed run of every engine, judged against a baseline.
 
-This module holds the metrics, rules, files and verdicts; harness/suites/check.py runs the check
+This module holds the metrics, rules, files and verdicts; harness/suites/check/__init__.py runs the check
 by composing the crosscheck, stability and depth suites and the speed rounds below.
 
 A check run measures, with every engine it is given and at fixed seeds:

@@ -1,6 +1,6 @@
 """The gate (``spq check``): the crosscheck, stability and depth-oracle suites and a small fuzz campaign
 at fixed seeds plus interleaved speed rounds, turned into metrics and judged against a baseline (rules in
-harness/check.py)."""
+harness/suites/check/gate.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from harness.check import SPEED_FLOOR, CheckConfig
+from harness.suites.check.gate import SPEED_FLOOR, CheckConfig
 from harness.suites import Output, frame_lines
 
 
@@ -28,7 +28,7 @@ class Config:
 def measure(settings: CheckConfig, engines: dict, progress: bool = False) -> list:
     """The metrics of one run with the given {name: Engine} (built by the caller, not closed here):
     each section runs its suite and turns the suite's per-query table into metrics."""
-    from harness import check as ck
+    from harness.suites.check import gate as ck
     from harness.suites import crosscheck, depth, stability
 
     metrics: list = []
@@ -58,7 +58,7 @@ def run(config: Config) -> Output:
     """Measure, judge against the baseline (if any) and return the results file, the diff, the JUnit
     XML, the extended history and the verdict (exit_code 1 on a regression). ValueError: a usage or
     environment error (an engine that cannot be built, an unreadable baseline, the speed peer missing)."""
-    from harness import check as ck
+    from harness.suites.check import gate as ck
     from harness.engines import available_engines
 
     start = time.perf_counter()
