@@ -52,7 +52,7 @@ def run(config: Config) -> Output:
              f"({facts['hull_volume']:.6g} m^3, qhull) - 1. queries_per_s: spq.distances STP-PCH (the STP-BV against "
              f"the link's hull) on {cfg.poses} random poses (harness.workloads.poses.random_poses, ±{cfg.translation_range} m), "
              f"default tolerance, best of {cfg.repeats}. witness_lipschitz: max |Δp| / step of the witness points "
-             "(m/rad) for STP-PCH on harness.continuity's parallel_faces trajectory at one step (step_rad), on a "
+             "(m/rad) for STP-PCH on harness.suites.continuity.witness_continuity's parallel_faces trajectory at one step (step_rad), on a "
              f"{cfg.grid}-point grid plus points straddling the {cfg.jumps} largest witness jumps.")
     title = f"STP-BV of {obj}, r = {cfg.r} m: what R trades"
     return Output(

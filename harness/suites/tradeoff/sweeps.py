@@ -10,7 +10,7 @@ and pybullet (margin 0 and its default margin) run once each at their own settin
 from just above the smallest admissible R (r + radius of the smallest enclosing ball) upwards. Per R:
 the feature count (patches), the volume excess over the hull (Monte Carlo), the STP-PCH batched
 queries per second on random poses, and the witness-point Lipschitz ratio of the STP-PCH pair on
-:mod:`harness.continuity`'s parallel-face trajectory at one small step.
+:mod:`harness.suites.continuity.witness_continuity`'s parallel-face trajectory at one small step.
 """
 
 from __future__ import annotations
@@ -227,7 +227,7 @@ def r_values(points, config: RTradeoffConfig) -> tuple[float, np.ndarray]:
 def stp_lipschitz(stp, link, config: RTradeoffConfig) -> tuple[float, float, float]:
     """Witness-point Lipschitz ratio (m/rad) of STP-PCH on the parallel_faces trajectory at one step,
     the step in rad, and the smallest distance seen on the path (m)."""
-    from harness import continuity as ct
+    from harness.suites.continuity import witness_continuity as ct
 
     cfg = ct.ContinuityConfig(object_name="", r=stp.r, R=stp.R, seed=config.seed, steps=(config.step,),
                               grid=config.grid, locate_grid=config.locate_grid, jumps=config.jumps)

@@ -1,5 +1,5 @@
 """The continuity suite: witness-point and normal Lipschitz ratios and the analytic gradient along
-trajectories (harness.continuity), and the signed distance through contact (harness.contact_continuity)."""
+trajectories (harness.suites.continuity.witness_continuity), and the signed distance through contact (harness.suites.continuity.contact_continuity)."""
 
 from __future__ import annotations
 
@@ -19,8 +19,8 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness import contact_continuity as cc
-    from harness import continuity as ct
+    from harness.suites.continuity import contact_continuity as cc
+    from harness.suites.continuity import witness_continuity as ct
     from harness.report.meta import run_metadata
 
     start = time.perf_counter()
@@ -36,7 +36,7 @@ def run(config: Config) -> Output:
                         theta_max_rad=cfg.theta_max, gap_m=cfg.gap,
                         seconds=round(time.perf_counter() - start, 1))
     notes = (f"Two copies of {obj}; A fixed, B moving along a trajectory s in [0, 1] "
-             "(see harness/continuity.py). "
+             "(see harness/suites/continuity/witness_continuity.py). "
              "witness_lipschitz = max |p(s+h) - p(s)| / step over the witness points of A and B (world frame), "
              "normal_lipschitz the same for the unit normal; step = h converted to rad (parallel_faces: B rotates "
              f"about an in-plane axis through a face-to-face parallel configuration, ±{cfg.theta_max} rad), "
@@ -67,7 +67,7 @@ def run(config: Config) -> Output:
     contact_notes = (f"Signed distance (spq, signed=True, tolerance {cc.TOL['tol']:g}) along {contact_config.paths} "
                      f"seeded paths per pair that enter and leave contact (B turns {contact_config.turn} rad while "
                      f"crossing A, from {contact_config.gap} m apart to about {contact_config.depth} m deep and out; "
-                     "harness/contact_continuity.py), on a grid of "
+                     "harness/suites/continuity/contact_continuity.py), on a grid of "
                      f"{contact_config.grid} points. max_crossing_jump_m: |sd| difference left after {cc.BISECTIONS} "
                      "bisections of each sign change (a jump at contact would stay). gradient_jumps: of B's 6-vector "
                      f"gradient, the {cc.JUMP_CANDIDATES} largest relative changes per path bisected "

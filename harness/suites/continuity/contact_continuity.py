@@ -36,7 +36,7 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 import spq
-from harness.continuity import PAIRS, Body, build_bodies
+from harness.suites.continuity.witness_continuity import PAIRS, Body, build_bodies
 from harness.report.charts import save_figure
 
 TOL = dict(tol=spq.DEFAULT_TOL_ABS, rel_tol=spq.DEFAULT_TOL_REL)
