@@ -86,7 +86,7 @@ def segments_of(point_a: np.ndarray, point_b: np.ndarray, distance: np.ndarray):
 
 
 def _mesh(shape, tolerance: float):
-    from harness.pictures import _mesh as picture_mesh
+    from harness.suites.pictures.paper_figures import _mesh as picture_mesh
 
     return picture_mesh(shape, tolerance)
 

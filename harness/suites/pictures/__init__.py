@@ -1,5 +1,5 @@
 """The pictures suite: 3-D pictures of the bounding volumes and of a robot scene, rendered offline to
-PNG (harness.pictures, drawn with matplotlib): one link's PCH, STP-BV and CSE cover; the R trade-off
+PNG (harness.suites.pictures.paper_figures, drawn with matplotlib): one link's PCH, STP-BV and CSE cover; the R trade-off
 as shapes; the robot at its closest posture with every body's bounding volume and the closest pairs'
 witness segments; an overlapping pair with its penetration vector."""
 
@@ -40,7 +40,7 @@ def default_robot() -> str:
 
 
 def run(config: Config) -> Output:
-    from harness import pictures as pic
+    from harness.suites.pictures import paper_figures as pic
     from harness.report.meta import run_metadata
 
     from spq.validation import as_positive
