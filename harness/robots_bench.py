@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness import robot_bench as rb
+from harness.suites.robot import robot_bench as rb
 from harness.workloads.robot_poses import random_configurations, smooth_trajectory
 from spq.kernels.gjk import OUT_DISTANCE, OUT_STATUS, OVERLAPPING, SEPARATED
 

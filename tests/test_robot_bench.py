@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import robot_bench as rb
+from harness.suites.robot import robot_bench as rb
 from harness.cli import main
 
 

@@ -334,7 +334,7 @@ def test_patch_rounds_skipped_where_the_hulls_overlap_could_not_have_closed():
     from tests.conftest import require_shared_datasets
 
     require_shared_datasets()
-    from harness.robot_bench import RobotBenchConfig, load_scene
+    from harness.suites.robot.robot_bench import RobotBenchConfig, load_scene
     from harness.workloads.robot_poses import random_configurations
     from spq.kernels.batch import F_MARGIN_A, F_MARGIN_B, I_KIND_A, I_KIND_B
     from spq.kernels.gjk import (OUT_DISTANCE, OUT_NORMAL, OUT_SIZE, OUT_STATUS, OVERLAPPING, PROBE_END, PROBE_ROW,

@@ -44,7 +44,7 @@ def resolved(config: Config) -> Config:
 
 
 def run(config: Config) -> Output:
-    from harness import robot_bench as rb
+    from harness.suites.robot import robot_bench as rb
     from harness import robots_bench as rsb
     from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
     from harness.report.meta import run_metadata
