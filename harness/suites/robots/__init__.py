@@ -45,7 +45,7 @@ def resolved(config: Config) -> Config:
 
 def run(config: Config) -> Output:
     from harness.suites.robot import robot_bench as rb
-    from harness import robots_bench as rsb
+    from harness.suites.robots import robots_bench as rsb
     from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
@@ -99,7 +99,7 @@ def run(config: Config) -> Output:
 
 def summary_lines(table) -> list[str]:
     """The run in a few sentences: how many robots ran, ranges of ms and ratios, what failed and why."""
-    from harness import robots_bench as rsb
+    from harness.suites.robots import robots_bench as rsb
 
     ran = table[table.status == rsb.STATUS_RAN]
     lines = [f"{len(ran)} of {len(table)} robots ran ({int(ran.pairs.sum()) if len(ran) else 0} pairs in all)."]
