@@ -80,7 +80,7 @@ def test_write_then_read_gives_the_same_object(shared_datasets, tmp_path):
 
 
 def test_warm_search_along_a_smooth_path_takes_about_zero_steps(shared_datasets):
-    from harness.stp_scaling import smooth_directions
+    from harness.suites.support.stp_scaling import smooth_directions
 
     stp = STPBV.from_sch_file(shared_datasets / "sch-samples" / "sample_stp_p.txt")
     d = smooth_directions(20000, 0)

@@ -12,7 +12,7 @@ from harness.suites import Figure, Output, Table, frame_lines
 class Config:
     object: str = "kuka_link_1"  # dataset name or mesh path
     r: float = 0.005  # m: STP-BV small radius
-    R_values: list[float] | None = None  # m: big radii; None: harness.stp_scaling's factors of the smallest admissible
+    R_values: list[float] | None = None  # m: big radii; None: harness.suites.support.stp_scaling's factors of the smallest admissible
     directions: int = 20000
     seed: int = 0
     repeats: int = 3
@@ -21,7 +21,7 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness import stp_scaling as sc
+    from harness.suites.support import stp_scaling as sc
     from harness.report.meta import run_metadata
 
     cfg = sc.ScalingConfig(object_name=config.object, r=config.r, R_values=tuple(config.R_values or ()) or None,
