@@ -161,9 +161,9 @@ def test_a_cold_scene_sweep_on_a_dask_local_cluster_equals_the_serial_run(arm_sw
 
 
 def tiny_campaign(**where):
-    """A small fuzz campaign (harness.fuzz.campaign): three families, 12 cases of 40 pose pairs, coal as
+    """A small fuzz campaign (harness.suites.fuzz.campaign): three families, 12 cases of 40 pose pairs, coal as
     the peer, rounds of 3 one-case tasks; its state after the run."""
-    from harness.fuzz.campaign import CampaignConfig, run
+    from harness.suites.fuzz.campaign import CampaignConfig, run
 
     config = CampaignConfig(seed=7, families=["primitives", "hull-needle", "cse"], poses=40,
                             peers=["coal"], cases_per_task=1)
@@ -171,7 +171,7 @@ def tiny_campaign(**where):
 
 
 def assert_same_campaign(serial, spread) -> None:
-    from harness.fuzz.campaign import table
+    from harness.suites.fuzz.campaign import table
 
     assert (spread.next_case, spread.rounds) == (serial.next_case, serial.rounds) == (12, 4)
     pd.testing.assert_frame_equal(table(serial), table(spread), check_exact=True)

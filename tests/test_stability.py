@@ -34,7 +34,7 @@ def test_stability_quick_writes_tables_and_spq_is_never_wrong(tmp_path):
     assert (spq_depth.depth_abs_error.dropna() <= spq_depth.allowed_depth_error.dropna()).all()
     assert (tmp_path / "stability_depth_worst.csv").stat().st_size > 0
     # the generated cases: one per fuzz family, judged and drawn into the heat map
-    from harness.fuzz.families import FAMILIES
+    from harness.suites.fuzz.families import FAMILIES
 
     generated = pd.read_csv(tmp_path / "stability_generated_detail.csv.gz")
     assert set(generated.family) == set(FAMILIES)
@@ -82,7 +82,7 @@ def test_generated_case_is_a_pure_function_of_seed_and_index():
 
 def test_full_config_has_at_least_1e4_cases_over_every_family():
     from harness.suites.stability import hard_cases as st
-    from harness.fuzz.families import FAMILIES
+    from harness.suites.fuzz.families import FAMILIES
 
     config = st.StabilityConfig()
     indices = st.generated_indices(config)
@@ -147,7 +147,7 @@ def test_a_wrong_spq_is_judged_wrong_against_the_fuzz_oracle(monkeypatch, shift)
     along the oracle's or spq's normal), so 'wrong', not merely disputed, whichever way it was settled."""
     from harness.suites.stability import hard_cases as st
     from harness.engines import available_engines
-    from harness.fuzz import judge
+    from harness.suites.fuzz import judge
     from spq.kernels.gjk import OUT_DISTANCE
 
     true_outputs = judge.spq_outputs

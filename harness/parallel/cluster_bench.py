@@ -1,7 +1,7 @@
 """One Dask worker against N on the same job, side by side: ``python -m harness.parallel.cluster_bench``.
 
 The jobs are the crosscheck (harness.suites.crosscheck.scoring.run_spread: every engine against the exact
-reference, and spq against coal) and a fuzz campaign (harness.fuzz.campaign.run), each run through
+reference, and spq against coal) and a fuzz campaign (harness.suites.fuzz.campaign.run), each run through
 harness.parallel.cluster.TaskRunner as ``spq crosscheck`` and ``spq fuzz`` run them with ``--scheduler local``.
 Both LocalClusters (1 worker and N) are started first and every worker warmed up (its engines built,
 spq's compiled code loaded: minutes when the kernels changed and compile anew), so that the timed
@@ -121,7 +121,7 @@ class FuzzJob:
     name = "fuzz"
 
     def __init__(self, queries: int, seed: int, peers: list | None):
-        from harness.fuzz import campaign as cp
+        from harness.suites.fuzz import campaign as cp
 
         self.config = cp.CampaignConfig(seed=seed, peers=peers)
         self.peers = cp.available_peers(peers)
@@ -136,7 +136,7 @@ class FuzzJob:
     def warm(self, runner) -> float:
         from dataclasses import asdict
 
-        from harness.fuzz.campaign import warm_worker
+        from harness.suites.fuzz.campaign import warm_worker
 
         args = (asdict(self.config), self.peers)
         if runner.scheduler is None:
@@ -144,7 +144,7 @@ class FuzzJob:
         return max(runner.on_each_worker(warm_worker, *args).values())
 
     def run(self, runner):
-        from harness.fuzz import campaign as cp
+        from harness.suites.fuzz import campaign as cp
 
         return cp.run(self.config, None, max_queries=self.queries, tasks_per_round=FUZZ_TASKS_PER_ROUND,
                       runner=runner)

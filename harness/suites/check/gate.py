@@ -13,8 +13,8 @@ A check run measures, with every engine it is given and at fixed seeds:
   oracle (:mod:`harness.references.depth_oracle`): largest error, failures, certified bounds missing it;
 - stability (every engine): wrong and failed verdicts on the stability and penetration families
   (:mod:`harness.suites.stability.hard_cases`, one pose per case);
-- fuzz (spq, and coal, mujoco and bullet where they run): a small fuzz campaign (:mod:`harness.fuzz`),
-  ``fuzz_cases`` cases of every family of :mod:`harness.fuzz.families` at ``fuzz_poses`` pose pairs
+- fuzz (spq, and coal, mujoco and bullet where they run): a small fuzz campaign (:mod:`harness.suites.fuzz`),
+  ``fuzz_cases`` cases of every family of :mod:`harness.suites.fuzz.families` at ``fuzz_poses`` pose pairs
   each, spq queried unsigned and signed: per family and mode, spq's wrong, failed and disputed
   queries, and the peers' wrong, failed and disputed ones as the campaign judges them;
 - speed: each engine's queries per second divided by the peer's (coal by default), timed in
@@ -77,11 +77,11 @@ class CheckConfig:
     speed_poses: int = 2000
     speed_rounds: int = 11
     peer: str = "coal"
-    fuzz_families: list | None = None  # None: every family of harness.fuzz.families
+    fuzz_families: list | None = None  # None: every family of harness.suites.fuzz.families
     fuzz_cases: int = 4  # fuzz cases per family: the campaign's cases 0 .. fuzz_cases x families - 1
     fuzz_poses: int = 500  # pose pairs per fuzz case, each queried unsigned and signed
     fuzz_sample: float = 2e-4  # share of spq's fuzz queries referenced whatever the cheap checks say
-    fuzz_plant: str | None = None  # a planted bug (harness.fuzz.plant) judged instead of spq: the tests' mutant
+    fuzz_plant: str | None = None  # a planted bug (harness.suites.fuzz.plant) judged instead of spq: the tests' mutant
     sections: tuple = SECTIONS
 
 
@@ -172,7 +172,7 @@ def stability_metrics(table: pd.DataFrame) -> list[Metric]:
 
 
 def fuzz_metrics(table: pd.DataFrame) -> list[Metric]:
-    """Metrics from a fuzz campaign's table (harness.fuzz.campaign.table's rows): per engine, family and
+    """Metrics from a fuzz campaign's table (harness.suites.fuzz.campaign.table's rows): per engine, family and
     mode, spq's wrong answers (none allowed), failures (no more than the baseline's) and disputed
     queries (recorded); the peers' wrong, failed (advisory) and disputed (recorded)."""
     out = []
@@ -188,12 +188,12 @@ def fuzz_metrics(table: pd.DataFrame) -> list[Metric]:
 def fuzz_campaign(config: CheckConfig, engines: dict, progress: bool = False):
     """The check's fuzz campaign, on this process: cases 0 .. fuzz_cases x families - 1 of the campaign
     at config.seed (those ``spq fuzz --seed S --poses P --queries 2 x P x cases`` runs first), judged by
-    harness.fuzz.campaign.run_task with the peers among ``engines``. Returns the campaign's State."""
+    harness.suites.fuzz.campaign.run_task with the peers among ``engines``. Returns the campaign's State."""
     from dataclasses import asdict
 
     from tqdm import tqdm
 
-    from harness.fuzz import campaign as cp
+    from harness.suites.fuzz import campaign as cp
 
     peers = [p for p in cp.DEFAULT_PEERS if p in engines]
     cc = cp.CampaignConfig(seed=config.seed, families=config.fuzz_families, poses=config.fuzz_poses,
@@ -211,7 +211,7 @@ def fuzz_campaign(config: CheckConfig, engines: dict, progress: bool = False):
 
 def fuzz_section(config: CheckConfig, engines: dict, progress: bool = False) -> list[Metric]:
     """Fuzz metrics (:func:`fuzz_metrics`) of the check's campaign (:func:`fuzz_campaign`)."""
-    from harness.fuzz.campaign import table
+    from harness.suites.fuzz.campaign import table
 
     return fuzz_metrics(table(fuzz_campaign(config, engines, progress)))
 

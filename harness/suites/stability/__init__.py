@@ -1,7 +1,7 @@
 """The stability suite: every engine on the cases where distance methods are known to fail (touching,
 shallow and deep overlaps, scales, far from the origin, flat and needle bodies...), scored against the
 exact reference (harness.suites.stability.hard_cases), with coal's DualityGap + Relative tolerance sweep, and on cases
-generated from the fuzz campaign's families (harness.fuzz.families), scored against the exact
+generated from the fuzz campaign's families (harness.suites.fuzz.families), scored against the exact
 reference or the fuzz campaign's independent oracle; a heat map shows where each engine fails."""
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def run(config: Config) -> Output:
         if len(sub):
             text += [markdown_table(sub.drop(columns=["family"])), ""]
     if len(generated):
-        from harness.fuzz.families import FAMILY_NOTES as FUZZ_NOTES
+        from harness.suites.fuzz.families import FAMILY_NOTES as FUZZ_NOTES
 
         gen_notes = generated_notes(generated)
         gen_summary = st.summarize(generated, by=("family", "engine"))
@@ -143,7 +143,7 @@ def generated_notes(generated) -> str:
     kinds = spq_rows.reference.value_counts()
     draws = ", ".join(f"{f} {n}" for f, n in st.FAMILY_DRAWS.items())
     return (f"{generated.case_index.nunique():,} cases drawn from the fuzz campaign's families "
-            f"(harness/fuzz/families.py): case k is pose k mod {st.POSES_PER_DRAW} of draw k div {st.POSES_PER_DRAW}, "
+            f"(harness/suites/fuzz/families.py): case k is pose k mod {st.POSES_PER_DRAW} of draw k div {st.POSES_PER_DRAW}, "
             f"and draw j is entry j mod {len(st.GENERATED_SCHEDULE)} of a fixed schedule (every family once, then the "
             f"rest interleaved: {draws} draws a round) drawn with np.random.default_rng([seed, "
             f"{st.GENERATED_STREAM}, j]), so a case is a pure "
@@ -152,7 +152,7 @@ def generated_notes(generated) -> str:
             "distance, so many 'touching' and 'shallow' poses land apart). Polytope pairs (hulls, boxes): every "
             "engine against the exact Minkowski reference. Pairs with an STP-BV, a superellipsoid, a sphere or a "
             "capsule: spq only (the peers take meshes), unsigned (verdict) and signed (depth_verdict), against "
-            "the fuzz campaign's independent support functions (harness/fuzz/oracle.py, no spq code): the "
+            "the fuzz campaign's independent support functions (harness/suites/fuzz/oracle.py, no spq code): the "
             "bracket [separation along spq's normal, distance of the support points] where it is narrower than "
             "the allowed error and gives one verdict at both ends, else the depth oracle's value, a lower bound "
             "of the signed distance (raised to the separation along spq's normals); a 'wrong' above that lower "

@@ -18,10 +18,10 @@ none. The penetration families (pen_*) exist for these: shallow 1e-12 .. 1e-3 m,
 faces, scales, far from the origin, degenerate GJK simplices and long faces against a tiny depth.
 
 Generated cases (draw_rows): beside these hand-built cases, cases drawn from the fuzz campaign's families
-(harness.fuzz.families), a case being one shape pair at one pose, seeded so that case k is a pure
+(harness.suites.fuzz.families), a case being one shape pair at one pose, seeded so that case k is a pure
 function of (seed, k). Polytope pairs are judged for every engine against the exact reference; pairs
 with an STP-BV, a superellipsoid, a sphere or a capsule for spq alone (the peers take meshes) against
-the fuzz campaign's independent oracle (harness.fuzz.oracle), with the same verdicts and tolerances,
+the fuzz campaign's independent oracle (harness.suites.fuzz.oracle), with the same verdicts and tolerances,
 plus 'disputed' where only the oracle's lower bound stands against spq's answer.
 """
 
@@ -429,7 +429,7 @@ def coal_sweep_cases(config: StabilityConfig, load_object) -> list[Case]:
 # A generated case is one shape pair at one pose, judged by every engine that takes the pair's shapes:
 # spq always (unsigned, and signed for the depth), the peers on polytope pairs only (they take meshes).
 # Case k is pose k % POSES_PER_DRAW of draw k // POSES_PER_DRAW; draw j is the fuzz family
-# GENERATED_SCHEDULE[j % len] drawn by harness.fuzz.families.draw_case with the generator
+# GENERATED_SCHEDULE[j % len] drawn by harness.suites.fuzz.families.draw_case with the generator
 # np.random.default_rng([seed, GENERATED_STREAM, j]): a case is a pure function of (seed, k).
 POSES_PER_DRAW = 10  # cases per drawn pair: its preparation (hulls, meshes sent to the peers' processes)
 # is shared by its poses, and 10,000 cases still hold 1,000 distinct pairs
@@ -463,7 +463,7 @@ GENERATED_SCHEDULE = _schedule(FAMILY_DRAWS)
 
 def generated_draw(seed: int, j: int):
     """(family, spec A, spec B, poses_a (POSES_PER_DRAW, 4, 4), poses_b, regimes) of draw j."""
-    from harness.fuzz.families import draw_case
+    from harness.suites.fuzz.families import draw_case
 
     if j < 0:
         raise ValueError(f"a draw index is >= 0, got {j}")
@@ -473,7 +473,7 @@ def generated_draw(seed: int, j: int):
 
 
 def generated_case(seed: int, k: int) -> dict:
-    """Generated case k: family, specs a and b (harness.fuzz.families), pose_a, pose_b (4x4), regime."""
+    """Generated case k: family, specs a and b (harness.suites.fuzz.families), pose_a, pose_b (4x4), regime."""
     if k < 0:
         raise ValueError(f"a case index is >= 0, got {k}")
     family, a, b, pa, pb, regimes = generated_draw(seed, k // POSES_PER_DRAW)
@@ -540,16 +540,16 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
 
     Polytope pairs: every engine against the exact Minkowski reference. Other pairs (an STP-BV, a
     superellipsoid, a sphere or a capsule) only spq, against the independent support functions of
-    harness.fuzz.oracle: first the bracket at spq's own normals (lower: the separation along the normal,
+    harness.suites.fuzz.oracle: first the bracket at spq's own normals (lower: the separation along the normal,
     a lower bound of the signed distance for any normal; upper: the distance between the two support
     points, apart), taken when spq's verdicts are the same at both of its ends; else the depth
     oracle's value (a lower bound of the signed distance), raised to the separation along spq's normals;
     a 'wrong' that this lower bound does not prove (spq above it, and not above the distance of the
     support points along the oracle's normal, an upper bound) goes to a denser oracle run (up to
     DENSE_PER_CASE per draw) and stays 'disputed' if that does not settle it."""
-    from harness.fuzz.judge import DENSE_PER_CASE, DENSE_POLISH, DENSE_STARTS, MODES, spq_outputs
+    from harness.suites.fuzz.judge import DENSE_PER_CASE, DENSE_POLISH, DENSE_STARTS, MODES, spq_outputs
     from harness.references.depth_oracle import signed_distance as oracle_sd
-    from harness.fuzz.oracle import POLYTOPES, oracle_shape, peer_polyhedron, reference, separation_bounds, spq_shape
+    from harness.suites.fuzz.oracle import POLYTOPES, oracle_shape, peer_polyhedron, reference, separation_bounds, spq_shape
     from spq.kernels.gjk import OUT_DISTANCE, OUT_NORMAL, OUT_STATUS, STATUS_NAMES
 
     family, a, b, poses_a, poses_b, regimes = generated_draw(seed, j)
@@ -557,7 +557,7 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
     poses_a, poses_b, regimes = poses_a[idx], poses_b[idx], regimes[idx]
     n = len(idx)
     oa, ob = oracle_shape(a), oracle_shape(b)
-    # the rounding slack's length (harness.fuzz.judge.slack): translations and the shapes' coordinates
+    # the rounding slack's length (harness.suites.fuzz.judge.slack): translations and the shapes' coordinates
     extent = (np.abs(poses_a[:, :3, 3]).max(axis=1) + np.abs(poses_b[:, :3, 3]).max(axis=1)
               + oa.magnitude + ob.magnitude)
     polytopes = a["kind"] in POLYTOPES and b["kind"] in POLYTOPES
@@ -641,7 +641,7 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
                         sd, unc, kind = 0.5 * (lo + up), 0.5 * (up - lo), "bracket"
                         judged = {"spq": ends[2]}
             if not judged:
-                # the depth oracle as harness.fuzz.oracle.reference runs it, its normal kept: the
+                # the depth oracle as harness.suites.fuzz.oracle.reference runs it, its normal kept: the
                 # distance of the support points there is an upper bound of the distance (apart)
                 r = oracle_sd(oa.core, poses_a[p], ob.core, poses_b[p])
                 sd = max([float(r.signed_distance) - oa.radius - ob.radius, *(b_[0] for b_ in bounds)])

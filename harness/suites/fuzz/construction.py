@@ -57,7 +57,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 from scipy.spatial.transform import Rotation
 
-from harness.fuzz.families import _count, _log_uniform
+from harness.suites.fuzz.families import _count, _log_uniform
 
 CHECK_REL_TOL = 1e-9  # admissible miss, relative to the cloud's size (bounding-box diagonal) (m/m)
 # rounding of a support point c_f + R u, or m - a w / |w| + R u on a torus with a ~ R, relative to

@@ -29,15 +29,15 @@ DEFAULT_PEERS = ("coal", "mujoco", "bullet")  # python-fcl hangs on some poses (
 @dataclass
 class CampaignConfig:
     seed: int = 0
-    families: list | None = None  # None: every family of harness.fuzz.families
+    families: list | None = None  # None: every family of harness.suites.fuzz.families
     poses: int = 2000  # pose pairs per case (each queried unsigned and signed)
     sample: float = 2e-4  # share of spq's queries referenced whatever the cheap checks say
     peers: list | None = None  # None: DEFAULT_PEERS that import
     cases_per_task: int = 4
-    plant: str | None = None  # a planted bug (harness.fuzz.plant), to show the campaign finds it
+    plant: str | None = None  # a planted bug (harness.suites.fuzz.plant), to show the campaign finds it
 
     def family_names(self) -> list:
-        from harness.fuzz.families import FAMILIES, check_family
+        from harness.suites.fuzz.families import FAMILIES, check_family
 
         return [check_family(f) for f in self.families] if self.families else list(FAMILIES)
 
@@ -101,9 +101,9 @@ def _peers(names):
 
 def run_task(task: dict) -> dict:
     """Judge cases task["cases"] of the campaign configured by task["config"]; counts and bad cases."""
-    from harness.fuzz.families import draw_case
-    from harness.fuzz.judge import judge_case
-    from harness.fuzz.plant import planted
+    from harness.suites.fuzz.families import draw_case
+    from harness.suites.fuzz.judge import judge_case
+    from harness.suites.fuzz.plant import planted
 
     config = CampaignConfig(**task["config"])
     families = config.family_names()

@@ -1,7 +1,7 @@
 """Shrinking a wrong or failed spq query to a small reproducer: fewer points, rounder numbers, a simpler
 pose, each step kept only if the query still goes wrong (or fails) the same way.
 
-The predicate re-judges the single query against the reference (harness.fuzz.judge with every query
+The predicate re-judges the single query against the reference (harness.suites.fuzz.judge with every query
 referenced), so a shrunk case is wrong by the same independent measure as the original. Steps, repeated
 until none helps or the budget of predicate calls runs out:
 
@@ -32,7 +32,7 @@ def case_of(bad) -> dict:
 def still_bad(case: dict, plant=None) -> bool:
     """True when spq's answer to the case's single query is judged as the case's verdict (wrong or
     failed) again; a case whose shapes cannot be built is not bad."""
-    from harness.fuzz.judge import judge_case
+    from harness.suites.fuzz.judge import judge_case
 
     try:
         pa, pb = np.asarray(case["pose_a"], float)[None], np.asarray(case["pose_b"], float)[None]

@@ -1,5 +1,12 @@
-"""The fuzz suite (``spq fuzz``): a seeded, resumable campaign over adversarial shape and pose families
-(harness/fuzz/), where each engine fails, and every wrong or failed spq case shrunk to a reproducer."""
+"""The fuzz suite (``spq fuzz``): a seeded, resumable campaign over adversarial shape and pose families,
+where each engine fails, and every wrong or failed spq case shrunk to a reproducer.
+
+This module is the suite's entry (config, run, tables); beside it: the families (families.py), every
+query judged against independent support functions, two or more peers and, on every disagreement and
+a random sample, the exact reference or the depth oracle (oracle.py, judge.py); every wrong or failed
+spq case shrunk to a small reproducer (shrink.py) saved for the test suite; the campaign's state
+checkpointed (campaign.py); planted bugs that show the campaign finds one (plant.py); and STP-BV
+construction as a fuzz family of its own (construction.py, ``python -m harness.suites.fuzz.construction``)."""
 
 from __future__ import annotations
 
@@ -15,7 +22,7 @@ FIXTURES = Path("tests/fixtures/fuzz")  # where the test suite replays reproduce
 @dataclass
 class Config:
     seed: int = 0
-    families: list | None = None  # None: all of harness.fuzz.families.FAMILIES
+    families: list | None = None  # None: all of harness.suites.fuzz.families.FAMILIES
     poses: int = 2000  # pose pairs per case (each queried unsigned and signed by spq)
     sample: float = 2e-4  # share of spq's queries referenced whatever the cheap checks say
     peers: list | None = None  # None: coal, mujoco, bullet (those that import)
@@ -27,17 +34,17 @@ class Config:
     shrink: bool = True
     shrink_limit: int = 5  # reproducers shrunk per run (one per family, mode and verdict first)
     fixtures: str | None = None  # folder for the reproducers (default tests/fixtures/fuzz if it exists)
-    plant: str | None = None  # a planted bug (harness.fuzz.plant)
+    plant: str | None = None  # a planted bug (harness.suites.fuzz.plant)
     progress: bool = False
 
 
 def run(config: Config) -> Output:
     from harness.parallel.cluster import check_scheduler, describe
-    from harness.fuzz import campaign as cp
-    from harness.fuzz.families import FAMILY_NOTES
-    from harness.fuzz.judge import BAND, PEER_TOL, SLACK_ULPS
-    from harness.fuzz.plant import planted
-    from harness.fuzz.shrink import case_of, points_count, save, shrink
+    from harness.suites.fuzz import campaign as cp
+    from harness.suites.fuzz.families import FAMILY_NOTES
+    from harness.suites.fuzz.judge import BAND, PEER_TOL, SLACK_ULPS
+    from harness.suites.fuzz.plant import planted
+    from harness.suites.fuzz.shrink import case_of, points_count, save, shrink
     from harness.report.meta import run_metadata
     from harness.report.tables import markdown_table
     from spq.workers import check_workers

@@ -236,7 +236,7 @@ def check_family(name: str) -> str:
 
 def draw_case(family: str, rng, n_poses: int):
     """(spec A, spec B, poses_a (n, 4, 4), poses_b, regimes (n,) str) of one case of ``family``."""
-    from harness.fuzz.oracle import oracle_shape
+    from harness.suites.fuzz.oracle import oracle_shape
 
     a, b, offset = FAMILIES[check_family(family)](rng)
     oa, ob = oracle_shape(a), oracle_shape(b)

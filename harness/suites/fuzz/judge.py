@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import spq
-from harness.fuzz.oracle import POLYTOPES, OracleShape, peer_polyhedron, reference, separation_bounds
+from harness.suites.fuzz.oracle import POLYTOPES, OracleShape, peer_polyhedron, reference, separation_bounds
 from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_NORMAL, OUT_STATUS, OUT_UPPER, FAILED, OVERLAPPING
 
 EPS = np.finfo(float).eps
@@ -159,7 +159,7 @@ def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict
     modes whose spq answers are judged (both are computed: each checks the other)."""
     import time
 
-    from harness.fuzz.oracle import oracle_shape, spq_shape
+    from harness.suites.fuzz.oracle import oracle_shape, spq_shape
 
     result = CaseResult()
     t0 = time.perf_counter()

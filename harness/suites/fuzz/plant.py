@@ -22,8 +22,8 @@ def planted(name: str | None):
 
 
 def _early_stop(a: dict, b: dict, poses_a, poses_b):
-    from harness.fuzz.judge import spq_outputs
-    from harness.fuzz.oracle import spq_shape
+    from harness.suites.fuzz.judge import spq_outputs
+    from harness.suites.fuzz.oracle import spq_shape
     from spq.kernels.gjk import OUT_LOWER, OUT_UPPER
 
     A, B = spq_shape(a), spq_shape(b)
