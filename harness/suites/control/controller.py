@@ -16,7 +16,7 @@ turns on without a jump and the joint slows to a stop at s_s instead of hitting 
 The QP goes to proxsuite's proxqp through qpsolvers, warm-started with the previous step's q̇; where proxqp
 finds no solution, daqp tries (counted apart). A failed solve is a stated status (counted; q̇ = 0 that
 step), never an exception. The damper rows come from a
-*distance source* (:class:`SpqSource` for an spq Scene; harness.control.peers has pinocchio's and
+*distance source* (:class:`SpqSource` for an spq Scene; harness.suites.control.peers has pinocchio's and
 MuJoCo's), so one QP serves every geometry.
 """
 
@@ -312,7 +312,7 @@ class Controller:
         return qdot, status
 
     def run(self, task, steps: int) -> RunLog:
-        """Run ``task`` (harness.control.tasks.Task) for ``steps`` steps from rest at task.q0."""
+        """Run ``task`` (harness.suites.control.tasks.Task) for ``steps`` steps from rest at task.q0."""
         p = self.params
         q = np.array(task.q0, dtype=np.float64)
         q0 = q.copy()

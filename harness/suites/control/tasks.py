@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from harness.control.controller import min_jerk
+from harness.suites.control.controller import min_jerk
 
 JITTER_M = 0.04  # m: uniform jitter of every target, per axis
 SEGMENT_S = (1.0, 1.4)  # s: range of each waypoint segment's duration (uniform)

@@ -46,7 +46,7 @@ def _timed(fn, qs) -> float:
 
 def _step_fn(controller, task, qs):
     """A whole control step at the k-th configuration (as Controller.run's loop body, without the log)."""
-    from harness.control.controller import joint_bounds
+    from harness.suites.control.controller import joint_bounds
 
     p = controller.params
     q0 = np.asarray(task.q0, float)
@@ -103,10 +103,10 @@ def step_timing(robot: str = "jvrc1", steps: int = 400, rounds: int = 5, seed: i
     import pandas as pd
     from tqdm import tqdm
 
-    from harness.control.controller import ControlParams, Controller, SpqSource
-    from harness.control.peers import PinocchioSource
-    from harness.control.scenes import robot_scenes
-    from harness.control.tasks import frozen_mask, make_tasks, setup
+    from harness.suites.control.controller import ControlParams, Controller, SpqSource
+    from harness.suites.control.peers import PinocchioSource
+    from harness.suites.control.scenes import robot_scenes
+    from harness.suites.control.tasks import frozen_mask, make_tasks, setup
 
     if steps < 2 or rounds < 1:
         raise ValueError(f"steps must be >= 2 and rounds >= 1; got {steps} and {rounds}")

@@ -144,7 +144,7 @@ def start_pairs(scene, q0, policies) -> list[tuple[str, str]]:
 def robot_scenes(robot: str, policies=SPQ_POLICIES) -> RobotScenes:
     """Read ``robot``, place its obstacles (arms), build one scene per policy; the pairs: the SRDF's (or
     adjacent links skipped) less the rigid pairs (:func:`rigid_pairs`) under the robot's frozen joints."""
-    from harness.control.tasks import arm_obstacles, frozen_mask, setup
+    from harness.suites.control.tasks import arm_obstacles, frozen_mask, setup
 
     s = setup(robot)
     srdf = _srdf_path(robot)
@@ -154,7 +154,7 @@ def robot_scenes(robot: str, policies=SPQ_POLICIES) -> RobotScenes:
     obstacles = arm_obstacles(scene, s) if s.kind == "arm" else []
     frozen = frozen_mask(model, s)
     with_obstacles, _ = _from_model(model, "pch", srdf, options, obstacle_objects(obstacles))
-    from harness.control.tasks import start_posture
+    from harness.suites.control.tasks import start_posture
 
     q0 = start_posture(model, s)
     rigid = rigid_pairs(with_obstacles, frozen)

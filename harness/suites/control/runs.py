@@ -1,5 +1,5 @@
 """The control benchmark's computation: every task of every robot with every method, then the runs'
-measures (harness.control.metrics), a per-method summary, the charts' data and the closing note."""
+measures (harness.suites.control.metrics), a per-method summary, the charts' data and the closing note."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from harness.control.controller import ControlParams, Controller, SpqSource
-from harness.control.metrics import CAUSES, DS_TOL_M, SPIKE_RAD_S2, run_metrics, series
-from harness.control.peers import DAMPER_PEERS, PEERS, damper_source, run_peer
-from harness.control.scenes import SPQ_POLICIES, check_start, robot_scenes
-from harness.control.tasks import ROBOTS, frozen_mask, make_tasks, setup, start_posture
+from harness.suites.control.controller import ControlParams, Controller, SpqSource
+from harness.suites.control.metrics import CAUSES, DS_TOL_M, SPIKE_RAD_S2, run_metrics, series
+from harness.suites.control.peers import DAMPER_PEERS, PEERS, damper_source, run_peer
+from harness.suites.control.scenes import SPQ_POLICIES, check_start, robot_scenes
+from harness.suites.control.tasks import ROBOTS, frozen_mask, make_tasks, setup, start_posture
 
 METHODS = tuple(f"spq-{p}" for p in SPQ_POLICIES) + PEERS + DAMPER_PEERS
 FALLBACK = {"pink": "pin-damper", "mink": "mujoco-damper"}  # a peer that cannot run a robot: its distances in spq's QP

@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from harness.control.controller import STATUS_FAILED, STATUS_SOLVED, RunLog, StepRows, body_frame_points, \
+from harness.suites.control.controller import STATUS_FAILED, STATUS_SOLVED, RunLog, StepRows, body_frame_points, \
     clipped_error, joint_bounds, urdf_velocity_limits
 
 PEERS = ("pink", "mink")
@@ -477,19 +477,19 @@ def _version(dist: str) -> str:
 
 
 def _log(method, task, steps, n) -> RunLog:
-    from harness.control.controller import _empty_log
+    from harness.suites.control.controller import _empty_log
 
     return _empty_log(method, task, steps, n, np.array(task.q0, float))
 
 
 def _put(log, k, rows, qdot, status, t_dist, t_qp, damped, lb, ub):
-    from harness.control.controller import _record
+    from harness.suites.control.controller import _record
 
     _record(log, k, rows, qdot, status, t_dist, t_qp, damped, lb, ub)
 
 
 def _clip(q, m, clipped):
-    from harness.control.controller import _clip as clip
+    from harness.suites.control.controller import _clip as clip
 
     return clip(q, m.lower, m.upper, clipped)
 

@@ -1,6 +1,20 @@
 """The control suite (``spq bench control``): a collision-avoiding differential-IK controller run on seeded
 tasks with spq's pch, stp, cse and auto scenes and with pink and mink, and what each bounding volume does
-to the commands (harness/control/)."""
+to the commands.
+
+This module is the suite's entry (config, run, tables); beside it:
+
+- controller.py: the QP at a fixed step (hand targets, damped joint limits, joint velocity limits, one
+  velocity-damper row per pair closer than d_i), fed by a distance source.
+- tasks.py: seeded tasks that drive bodies near each other, per robot.
+- scenes.py: one robot read once, one scene per bounding-volume policy.
+- peers.py: pink's SelfCollisionBarrier and mink's CollisionAvoidanceLimit in their own solvers, and the
+  same damper QP fed by pinocchio's or MuJoCo's distances.
+- metrics.py: per run, the smallest distance on a common geometry, how far the active rows turn, the
+  commands' jumps by cause, time per step.
+- runs.py: every task of every robot with every method, and the runs' summary.
+- speed.py: what a control step costs, side by side in one process.
+"""
 
 from __future__ import annotations
 
@@ -21,7 +35,7 @@ class Config:
     methods: list[str] | None = None  # None: spq-pch, spq-stp, spq-cse, spq-auto, pink, mink, pin-damper, mujoco-damper
     progress: bool = False
     pink_tasks: int | None = 3  # pink on this many tasks per robot only (None: all): its barrier loops over every pair
-    speed: bool = True  # also time a control step side by side (harness/control/speed.py) on the first robot
+    speed: bool = True  # also time a control step side by side (harness/suites/control/speed.py) on the first robot
     speed_steps: int = 400  # configurations of the timed replay
     speed_rounds: int = 5
 
@@ -33,11 +47,11 @@ SHOWN = ["robot", "method", "runs", "min_distance_m_worst", "steps_below_ds", "f
 
 
 def run(config: Config) -> Output:
-    from harness.control import runs
-    from harness.control.controller import QP_EPS_ABS, QP_SOLVER, ControlParams
-    from harness.control.metrics import FEATURE_JUMP_M, FEATURE_JUMP_RATIO, SPIKE_RAD_S2
-    from harness.control.peers import MINK_SOLVER
-    from harness.control.tasks import JITTER_M, SEGMENT_S
+    from harness.suites.control import runs
+    from harness.suites.control.controller import QP_EPS_ABS, QP_SOLVER, ControlParams
+    from harness.suites.control.metrics import FEATURE_JUMP_M, FEATURE_JUMP_RATIO, SPIKE_RAD_S2
+    from harness.suites.control.peers import MINK_SOLVER
+    from harness.suites.control.tasks import JITTER_M, SEGMENT_S
     from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
     from harness.report.meta import _version, run_metadata
     from harness.report.tables import markdown_table
@@ -83,9 +97,9 @@ def run(config: Config) -> Output:
 
 
 def _add_speed(out: Output, config: Config, params) -> None:
-    """control_speed.md/.csv: a control step timed side by side on one robot (harness/control/speed.py)."""
-    from harness.control import runs
-    from harness.control.speed import step_timing
+    """control_speed.md/.csv: a control step timed side by side on one robot (harness/suites/control/speed.py)."""
+    from harness.suites.control import runs
+    from harness.suites.control.speed import step_timing
     from harness.report.tables import markdown_table
 
     robot = runs.check_robots(config.robots)[0]
@@ -106,13 +120,13 @@ def _json(meta) -> str:
 
 
 def _notes(config, params, result) -> str:
-    from harness.control.controller import QP_SOLVER
-    from harness.control.metrics import FEATURE_JUMP_M, FEATURE_JUMP_RATIO, SPIKE_RAD_S2
-    from harness.control.peers import MINK_SOLVER
+    from harness.suites.control.controller import QP_SOLVER
+    from harness.suites.control.metrics import FEATURE_JUMP_M, FEATURE_JUMP_RATIO, SPIKE_RAD_S2
+    from harness.suites.control.peers import MINK_SOLVER
 
     p = params
     return (
-        f"A differential-IK controller as a QP at dt = {p.dt * 1e3:g} ms on the joint velocities (harness/control/"
+        f"A differential-IK controller as a QP at dt = {p.dt * 1e3:g} ms on the joint velocities (harness/suites/control/"
         f"controller.py): hand points tracked (gain {p.position_gain:g} 1/s with the reference's velocity fed forward, "
         f"weight {p.position_weight:g}; hand orientations held, gain {p.orientation_gain:g} 1/s, weight "
         f"{p.orientation_weight:g}), a posture pull (gain {p.posture_gain:g} 1/s, weight {p.posture_weight:g}), "
@@ -131,7 +145,7 @@ def _notes(config, params, result) -> str:
         "pink: pink.solve_ik with FrameTasks, PostureTask, ConfigurationLimit, VelocityLimit and SelfCollisionBarrier "
         f"over every pair (gain ξ/(d_i - d_s), d_min = d_s) on pinocchio + coal hulls; mink: mink.solve_ik "
         f"({MINK_SOLVER}) with FrameTasks, PostureTask, ConfigurationLimit, VelocityLimit and CollisionAvoidanceLimit "
-        "(detection d_i, minimum d_s, gain set to the same damper) on a MuJoCo model of the same hulls (harness/control/"
+        "(detection d_i, minimum d_s, gain set to the same damper) on a MuJoCo model of the same hulls (harness/suites/control/"
         "peers.py); pin-damper and mujoco-damper: spq's QP fed by pinocchio + coal (computeDistances, joint Jacobians "
         "shifted to the witness points) and by MuJoCo (mj_geomDistance, mj_jac) on the same hulls, which also stand in "
         "for pink or mink on a robot they cannot run (a run's note says so). Pairs: the robot's SRDF-pruned set "
@@ -139,7 +153,7 @@ def _notes(config, params, result) -> str:
         "moves apart (rigid), those whose distance hardly varies over random configurations of the active joints "
         "(static) and those within d_s at the start posture under some volume: the same for every method "
         "(control_robots.csv counts them). "
-        "Measures (harness/control/metrics.py): a closest-feature switch is a witness point jumping in its body's "
+        "Measures (harness/suites/control/metrics.py): a closest-feature switch is a witness point jumping in its body's "
         f"frame: over {FEATURE_JUMP_M * 1e3:g} mm in one step and over {FEATURE_JUMP_RATIO:g} times its move at the "
         f"steps before and after; a spike is ‖Δq̇‖/dt over {SPIKE_RAD_S2:g} "
         "rad/s²; the smallest distance is every trajectory's on the same PCH scene. Time: distances + Jacobians "
@@ -176,7 +190,7 @@ ACC_CHART_FLOOR = 0.1  # rad/s²: the acceleration chart starts here (steps at r
 
 
 def _acceleration_chart(result, path):
-    from harness.control.metrics import SPIKE_RAD_S2
+    from harness.suites.control.metrics import SPIKE_RAD_S2
     from harness.report.charts import pyplot, save_figure
 
     plt = pyplot()
