@@ -98,9 +98,9 @@ def cmd_report(args) -> int:
 
 
 def cmd_scene(args) -> int:
+    from harness.parallel.cluster import check_scheduler, describe
     from harness.workloads import scene_file as sf
     from harness.workloads import scene_run as sr
-    from harness.parallel.cluster import check_scheduler, describe
     from spq.workers import check_workers
 
     check_workers(args.workers)

@@ -14,9 +14,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness.suites.check import gate as ck
 from harness import cli
 from harness import engines as engines_mod
+from harness.suites.check import gate as ck
 
 REPO = Path(__file__).resolve().parent.parent
 SMALL = ["--per-bucket", "4", "--quiet"]  # 13 buckets x 4 poses over two object pairs

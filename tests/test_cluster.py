@@ -102,9 +102,9 @@ def test_tasks_come_back_in_task_order_whatever_the_hand_out_order():
 def test_stability_cases_on_a_dask_local_cluster_equal_the_serial_run(dask_scheduler):
     pytest.importorskip("coal")
     from datasets import load_object
-    from harness.suites.stability import hard_cases as st
     from harness.engines import available_engines
     from harness.engines.isolated import isolated
+    from harness.suites.stability import hard_cases as st
 
     cases = st.build_cases(st.StabilityConfig(quick=True), load_object)[::8]
     plain = available_engines(["spq", "coal"])

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness.suites.robot import robot_bench as rb
 from harness.cli import main
+from harness.suites.robot import robot_bench as rb
 
 
 class _Result:

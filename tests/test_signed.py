@@ -17,8 +17,8 @@ from scipy.spatial.transform import Rotation
 
 import spq
 from datasets import load_object
-from harness.workloads.poses import bucket_suite, pose_matrix
 from harness.references.minkowski import MinkowskiReference, reference_distance
+from harness.workloads.poses import bucket_suite, pose_matrix
 from spq.scene import Scene
 
 OVERLAP_BUCKETS = ["overlap-1e-4", "overlap-1e-3", "overlap-1e-2", "overlap-1e-1"]

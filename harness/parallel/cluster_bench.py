@@ -77,8 +77,8 @@ class CrosscheckJob:
 
     def __init__(self, per_bucket: int, agreement: int, seed: int, engines: list | None):
         from datasets import DEFAULT_OBJECTS
-        from harness.suites.crosscheck import scoring as cc
         from harness.engines import available_engines
+        from harness.suites.crosscheck import scoring as cc
 
         plain = available_engines(engines)
         self.engines = list(plain)

@@ -32,8 +32,8 @@ CHECK_BASELINE = Path(__file__).resolve().parent.parent / ".ci" / "check-baselin
 def check_config(quick: bool, seed: int, out: Path):
     """spq check against the committed baseline (if this is a source checkout), speed advisory, the
     run appended to the report's history."""
-    from harness.suites.check.gate import CheckConfig
     from harness.suites import check
+    from harness.suites.check.gate import CheckConfig
 
     history = str(out / "check_history.jsonl")
     if quick:  # smaller than the baseline's run: nothing to compare with

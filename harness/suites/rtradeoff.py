@@ -25,8 +25,8 @@ def run(config: Config) -> Output:
     import numpy as np
 
     from datasets import load_object
-    from harness.suites.tradeoff import sweeps as tr
     from harness.report.meta import run_metadata
+    from harness.suites.tradeoff import sweeps as tr
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
     start = time.perf_counter()

@@ -28,8 +28,8 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness.suites.bench import throughput as bench
     from harness.report.meta import run_metadata
+    from harness.suites.bench import throughput as bench
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
     from spq.workers import check_workers

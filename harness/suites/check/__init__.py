@@ -8,8 +8,8 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from harness.suites.check.gate import SPEED_FLOOR, CheckConfig
 from harness.suites import Output, frame_lines
+from harness.suites.check.gate import SPEED_FLOOR, CheckConfig
 
 
 @dataclass
@@ -28,8 +28,8 @@ class Config:
 def measure(settings: CheckConfig, engines: dict, progress: bool = False) -> list:
     """The metrics of one run with the given {name: Engine} (built by the caller, not closed here):
     each section runs its suite and turns the suite's per-query table into metrics."""
-    from harness.suites.check import gate as ck
     from harness.suites import crosscheck, depth, stability
+    from harness.suites.check import gate as ck
 
     metrics: list = []
     names = list(engines)
@@ -58,8 +58,8 @@ def run(config: Config) -> Output:
     """Measure, judge against the baseline (if any) and return the results file, the diff, the JUnit
     XML, the extended history and the verdict (exit_code 1 on a regression). ValueError: a usage or
     environment error (an engine that cannot be built, an unreadable baseline, the speed peer missing)."""
-    from harness.suites.check import gate as ck
     from harness.engines import available_engines
+    from harness.suites.check import gate as ck
 
     start = time.perf_counter()
     settings = config.settings

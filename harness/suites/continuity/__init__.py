@@ -1,5 +1,6 @@
 """The continuity suite: witness-point and normal Lipschitz ratios and the analytic gradient along
-trajectories (harness.suites.continuity.witness_continuity), and the signed distance through contact (harness.suites.continuity.contact_continuity)."""
+trajectories (witness_continuity.py, beside this entry), and the signed distance through contact
+(contact_continuity.py)."""
 
 from __future__ import annotations
 
@@ -19,9 +20,9 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
+    from harness.report.meta import run_metadata
     from harness.suites.continuity import contact_continuity as cc
     from harness.suites.continuity import witness_continuity as ct
-    from harness.report.meta import run_metadata
 
     start = time.perf_counter()
     obj = config.object

@@ -36,8 +36,8 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 import spq
-from harness.suites.continuity.witness_continuity import PAIRS, Body, build_bodies
 from harness.report.charts import save_figure
+from harness.suites.continuity.witness_continuity import PAIRS, Body, build_bodies
 
 TOL = dict(tol=spq.DEFAULT_TOL_ABS, rel_tol=spq.DEFAULT_TOL_REL)
 BISECTIONS = 40  # halvings of a crossing interval; of a gradient-jump candidate

@@ -47,14 +47,14 @@ SHOWN = ["robot", "method", "runs", "min_distance_m_worst", "steps_below_ds", "f
 
 
 def run(config: Config) -> Output:
+    from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
+    from harness.report.meta import _version, run_metadata
+    from harness.report.tables import markdown_table
     from harness.suites.control import runs
     from harness.suites.control.controller import QP_EPS_ABS, QP_SOLVER, ControlParams
     from harness.suites.control.metrics import FEATURE_JUMP_M, FEATURE_JUMP_RATIO, SPIKE_RAD_S2
     from harness.suites.control.peers import MINK_SOLVER
     from harness.suites.control.tasks import JITTER_M, SEGMENT_S
-    from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
-    from harness.report.meta import _version, run_metadata
-    from harness.report.tables import markdown_table
 
     if config.tasks < 1:
         raise ValueError(f"control suite: tasks must be >= 1; got {config.tasks}")
@@ -98,9 +98,9 @@ def run(config: Config) -> Output:
 
 def _add_speed(out: Output, config: Config, params) -> None:
     """control_speed.md/.csv: a control step timed side by side on one robot (harness/suites/control/speed.py)."""
+    from harness.report.tables import markdown_table
     from harness.suites.control import runs
     from harness.suites.control.speed import step_timing
-    from harness.report.tables import markdown_table
 
     robot = runs.check_robots(config.robots)[0]
     timing = step_timing(robot, steps=config.speed_steps, rounds=config.speed_rounds, seed=config.seed,
@@ -190,8 +190,8 @@ ACC_CHART_FLOOR = 0.1  # rad/s²: the acceleration chart starts here (steps at r
 
 
 def _acceleration_chart(result, path):
-    from harness.suites.control.metrics import SPIKE_RAD_S2
     from harness.report.charts import pyplot, save_figure
+    from harness.suites.control.metrics import SPIKE_RAD_S2
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))

@@ -6,9 +6,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from harness.suites.crosscheck import scoring as cc
 from harness.engines.mujoco_engine import PIPELINE_NOTE as MUJOCO_PIPELINE
 from harness.suites import Output, Table, frame_lines
+from harness.suites.crosscheck import scoring as cc
 
 NOTES = ("Errors are reported distance minus the exact reference distance (closest point of the "
          "Minkowski-difference hull; 0 when overlapping), in metres; relative errors and witness checks on "

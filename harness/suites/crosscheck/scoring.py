@@ -176,9 +176,9 @@ class Task:
 def _judged_engines(names: tuple, plugins: tuple) -> dict:
     """The engines a worker process judges: registered as in the parent, native ones in children
     (harness.engines.isolated); built once per process and kept for its later tasks."""
-    from harness.parallel.cluster import check_may_start_children, process_cache
     from harness.engines import register_plugin
     from harness.engines.isolated import isolated
+    from harness.parallel.cluster import check_may_start_children, process_cache
 
     def build() -> dict:
         for name, spec in plugins:

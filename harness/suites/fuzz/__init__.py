@@ -40,13 +40,13 @@ class Config:
 
 def run(config: Config) -> Output:
     from harness.parallel.cluster import check_scheduler, describe
+    from harness.report.meta import run_metadata
+    from harness.report.tables import markdown_table
     from harness.suites.fuzz import campaign as cp
     from harness.suites.fuzz.families import FAMILY_NOTES
     from harness.suites.fuzz.judge import BAND, PEER_TOL, SLACK_ULPS
     from harness.suites.fuzz.plant import planted
     from harness.suites.fuzz.shrink import case_of, points_count, save, shrink
-    from harness.report.meta import run_metadata
-    from harness.report.tables import markdown_table
     from spq.workers import check_workers
 
     check_workers(config.workers)

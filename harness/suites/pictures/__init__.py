@@ -40,8 +40,8 @@ def default_robot() -> str:
 
 
 def run(config: Config) -> Output:
-    from harness.suites.pictures import paper_figures as pic
     from harness.report.meta import run_metadata
+    from harness.suites.pictures import paper_figures as pic
 
     from spq.validation import as_positive
 

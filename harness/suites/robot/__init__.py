@@ -26,9 +26,9 @@ class Config:
 
 
 def run(config: Config) -> Output:
-    from harness.suites.robot import robot_bench as rb
     from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
     from harness.report.meta import run_metadata
+    from harness.suites.robot import robot_bench as rb
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
     from spq.workers import check_workers
 

@@ -44,10 +44,10 @@ def resolved(config: Config) -> Config:
 
 
 def run(config: Config) -> Output:
-    from harness.suites.robot import robot_bench as rb
-    from harness.suites.robots import robots_bench as rsb
     from harness.report.charts import pyplot  # noqa: F401  (headless backend before any figure)
     from harness.report.meta import run_metadata
+    from harness.suites.robot import robot_bench as rb
+    from harness.suites.robots import robots_bench as rsb
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
     config = resolved(config)

@@ -30,10 +30,10 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness.suites.stability import hard_cases as st
-    from harness.report.meta import run_metadata
     from harness.parallel.cluster import describe
+    from harness.report.meta import run_metadata
     from harness.report.tables import markdown_table
+    from harness.suites.stability import hard_cases as st
 
     start = time.perf_counter()
     cfg = st.StabilityConfig(seed=config.seed, quick=bool(config.quick), engines=config.engines,

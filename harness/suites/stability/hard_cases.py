@@ -35,8 +35,8 @@ import numpy as np
 import pandas as pd
 
 import spq
-from harness.workloads.poses import pose_matrix, random_rotations
 from harness.references.minkowski import MinkowskiReference, reference_distance
+from harness.workloads.poses import pose_matrix, random_rotations
 
 AMBIGUOUS_BAND = 1e-9  # m
 ENGINES = ("spq", "fcl", "coal", "bullet", "bullet-margin", "mujoco")
@@ -547,8 +547,8 @@ def draw_rows(seed: int, j: int, picks: tuple, engines: dict) -> list[dict]:
     a 'wrong' that this lower bound does not prove (spq above it, and not above the distance of the
     support points along the oracle's normal, an upper bound) goes to a denser oracle run (up to
     DENSE_PER_CASE per draw) and stays 'disputed' if that does not settle it."""
-    from harness.suites.fuzz.judge import DENSE_PER_CASE, DENSE_POLISH, DENSE_STARTS, MODES, spq_outputs
     from harness.references.depth_oracle import signed_distance as oracle_sd
+    from harness.suites.fuzz.judge import DENSE_PER_CASE, DENSE_POLISH, DENSE_STARTS, MODES, spq_outputs
     from harness.suites.fuzz.oracle import POLYTOPES, oracle_shape, peer_polyhedron, reference, separation_bounds, spq_shape
     from spq.kernels.gjk import OUT_DISTANCE, OUT_NORMAL, OUT_STATUS, STATUS_NAMES
 
@@ -681,9 +681,9 @@ def run(config: StabilityConfig, load_object, progress: bool = False, workers: i
     workers > 1 or a scheduler: every case is a task (its poses drawn here, as in the serial run)
     run on that many processes or on a Dask cluster (harness.parallel.cluster); the tables are the serial
     run's but for the time_us column."""
-    from harness.parallel.cluster import check_scheduler
     from harness.engines import ENGINE_FACTORIES, PLUGIN_SPECS, available_engines
     from harness.engines.isolated import isolated
+    from harness.parallel.cluster import check_scheduler
     from spq.workers import check_workers
 
     workers, scheduler = check_workers(workers), check_scheduler(scheduler)
@@ -750,9 +750,9 @@ class CaseTask:
 
 def _task_engines(task: CaseTask) -> dict:
     """The engines of a task, built once per worker process (see harness.parallel.cluster.process_cache)."""
-    from harness.parallel.cluster import check_may_start_children, process_cache
     from harness.engines import available_engines, register_plugin
     from harness.engines.isolated import isolated
+    from harness.parallel.cluster import check_may_start_children, process_cache
 
     if task.sweep is not None:
         return process_cache(("stability sweep", task.sweep), lambda: {

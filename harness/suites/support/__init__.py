@@ -21,8 +21,8 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness.suites.support import stp_scaling as sc
     from harness.report.meta import run_metadata
+    from harness.suites.support import stp_scaling as sc
 
     cfg = sc.ScalingConfig(object_name=config.object, r=config.r, R_values=tuple(config.R_values or ()) or None,
                            directions=config.directions, seed=config.seed, repeats=config.repeats)

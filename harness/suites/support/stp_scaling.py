@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from harness.report.charts import save_figure
 from spq.kernels.stp_batch import support_batch
 from spq.kernels.stp_support import METHOD_NAMES
-from harness.report.charts import save_figure
 from spq.shapes.stpbv import STPBV
 
 

@@ -68,9 +68,9 @@ def describe_cse(name: str, shape) -> str:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness.suites.table1 import bv_rates as t1
     from harness.report.meta import run_metadata
     from harness.report.tables import markdown_table
+    from harness.suites.table1 import bv_rates as t1
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
     from spq.shapes.superellipsoid import INNER_DIRECTIONS
 

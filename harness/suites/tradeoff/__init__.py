@@ -20,8 +20,8 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness.suites.tradeoff import sweeps as tr
     from harness.report.meta import run_metadata
+    from harness.suites.tradeoff import sweeps as tr
 
     start = time.perf_counter()
     overrides = {k: v for k, v in (("per_bucket", config.per_bucket), ("repeats", config.repeats)) if v is not None}

@@ -21,8 +21,8 @@ import numpy as np
 import pandas as pd
 
 import spq
-from harness.suites.bench.throughput import best_time, timing_modes
 from harness.report.charts import save_figure
+from harness.suites.bench.throughput import best_time, timing_modes
 
 SEPARATED_BUCKETS = ("distant-1", "distant-0.5", "close-1e-1", "close-1e-2", "close-1e-3", "close-1e-4")
 FAIL_DISTANCE = 1e6  # m: |distance| above this is a failure (coal can return -DBL_MAX on a separated pose)
@@ -250,8 +250,8 @@ def run_rtradeoff(config: RTradeoffConfig, load_object, progress: bool = False) 
     from scipy.spatial import ConvexHull
     from tqdm import tqdm
 
-    from harness.workloads.poses import random_poses
     from harness.suites.table1.bv_rates import monte_carlo_volume
+    from harness.workloads.poses import random_poses
 
     link = load_object(config.object_name)
     points = link.vertices
