@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.check import SECTIONS, SPEED_FLOOR, CheckConfig
+from harness.suites.check.gate import SECTIONS, SPEED_FLOOR, CheckConfig
 from harness.suites.table1 import CSE_FIT, preset_text
 
 DEFAULT_OUT = Path("reports")
@@ -89,7 +89,7 @@ def cmd_check(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from harness.report_suite import run_report
+    from harness.report.assemble import run_report
 
     start = time.perf_counter()
     paths = run_report(Path(args.out), quick=args.quick, seed=args.seed)
@@ -98,9 +98,9 @@ def cmd_report(args) -> int:
 
 
 def cmd_scene(args) -> int:
-    from harness import scene_file as sf
-    from harness import scene_run as sr
-    from harness.cluster import check_scheduler, describe
+    from harness.parallel.cluster import check_scheduler, describe
+    from harness.workloads import scene_file as sf
+    from harness.workloads import scene_run as sr
     from spq.workers import check_workers
 
     check_workers(args.workers)
@@ -163,7 +163,7 @@ def cmd_scene(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from harness.viewer import MissingViewer, serve
+    from harness.report.viewer import MissingViewer, serve
 
     try:
         viewer = serve(args.targets, host=args.host, port=args.port, tolerance=args.tolerance, r=args.r, R=args.R)
@@ -183,7 +183,7 @@ def cmd_view(args) -> int:
 
 
 def cmd_history(args) -> int:
-    from harness import check as ck
+    from harness.suites.check import gate as ck
 
     table = ck.load_history(args.history)
     if table.empty or table.run.nunique() < 1:
@@ -239,7 +239,7 @@ def _workers(text: str) -> int:
 
 
 def _cse(text: str) -> str:
-    """--cse: checked here (harness.table1.cse_spec's ValueError) so that a bad value stops the
+    """--cse: checked here (harness.suites.table1.bv_rates.cse_spec's ValueError) so that a bad value stops the
     command before the bodies are built; the suite parses it again."""
     from harness.suites.table1 import cse_spec
 
@@ -414,7 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_suite("pictures"))
 
     p = sub.add_parser("scene", help="a robot scene from a TOML file (scenes/*.toml): every pair over its configurations")
-    p.add_argument("scene", help="scene file (TOML; see scenes/ and harness/scene_file.py)")
+    p.add_argument("scene", help="scene file (TOML; see scenes/ and harness/workloads/scene_file.py)")
     p.add_argument("--out", help="folder for the per-configuration and closest-posture CSVs (default: none written)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--workers", type=_workers, default=1,

@@ -14,9 +14,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness import check as ck
 from harness import cli
 from harness import engines as engines_mod
+from harness.suites.check import gate as ck
 
 REPO = Path(__file__).resolve().parent.parent
 SMALL = ["--per-bucket", "4", "--quiet"]  # 13 buckets x 4 poses over two object pairs
@@ -219,7 +219,7 @@ def fuzz_baseline(tmp_path_factory):
 
 @pytest.mark.engines
 def test_fuzz_metrics_cover_every_family_and_mode(fuzz_baseline):
-    from harness.fuzz.families import FAMILIES
+    from harness.suites.fuzz.families import FAMILIES
 
     metrics = ck.metrics_of(ck.load_results(fuzz_baseline))
     spq = {(m.check, m.metric): m for m in metrics if m.engine == "spq"}
@@ -252,7 +252,7 @@ def test_fuzz_rerun_equals_its_baseline_and_a_raised_failure_count_fails(fuzz_ba
 
 @pytest.mark.engines
 def test_planted_wrong_answer_fails_the_fuzz_section(fuzz_baseline, tmp_path):
-    # early-stop (harness.fuzz.plant) closes spq's bounds on a too-early distance; three cheap hull
+    # early-stop (harness.suites.fuzz.plant) closes spq's bounds on a too-early distance; three cheap hull
     # families find it in one case each (the STP families' oracle takes a minute on its suspects).
     code, _, diff = _fuzz_check(baseline=fuzz_baseline, fuzz_plant="early-stop",
                                 fuzz_families=["hull-random", "hull-needle", "hull-far"])

@@ -1,4 +1,4 @@
-"""Suites spread over processes or a Dask cluster (harness.cluster): the oracle is the serial run of
+"""Suites spread over processes or a Dask cluster (harness.parallel.cluster): the oracle is the serial run of
 the same suite, whose tables the spread run must reproduce exactly (timing columns aside)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import time
 import pandas as pd
 import pytest
 
-from harness import cluster
+from harness.parallel import cluster
 from harness.suites import crosscheck
 
 TIMING = ("time_us", "median_time_us")  # wall times: never equal between two runs, serial or not
@@ -54,7 +54,7 @@ def require_dask():
 
 @pytest.fixture(scope="module")
 def dask_scheduler():
-    """The address of a Dask LocalCluster of 2 processes (harness.cluster's, as --scheduler local starts
+    """The address of a Dask LocalCluster of 2 processes (harness.parallel.cluster's, as --scheduler local starts
     it), shared by the tests that run on it: they reach it as a remote cluster, by address."""
     require_dask()
     with cluster.dask_client(cluster.LOCAL, 2) as (client, _):
@@ -102,9 +102,9 @@ def test_tasks_come_back_in_task_order_whatever_the_hand_out_order():
 def test_stability_cases_on_a_dask_local_cluster_equal_the_serial_run(dask_scheduler):
     pytest.importorskip("coal")
     from datasets import load_object
-    from harness import stability as st
     from harness.engines import available_engines
     from harness.engines.isolated import isolated
+    from harness.suites.stability import hard_cases as st
 
     cases = st.build_cases(st.StabilityConfig(quick=True), load_object)[::8]
     plain = available_engines(["spq", "coal"])
@@ -126,7 +126,7 @@ def arm_sweep():
 
     import spq
     from datasets.robots import ROBOTS
-    from harness import scene_run as sr
+    from harness.workloads import scene_run as sr
 
     files = ROBOTS["kuka_iiwa"]
     scene = spq.Scene.from_urdf(files.urdf, mesh_root=files.mesh_root, policy="pch")
@@ -147,23 +147,23 @@ def assert_same_sweep(serial, spread) -> None:
 
 
 def test_a_cold_scene_sweep_on_threads_equals_the_serial_run(arm_sweep):
-    from harness import scene_run as sr
+    from harness.workloads import scene_run as sr
 
     scene, qs, serial = arm_sweep
     assert_same_sweep(serial, sr.run_scene_spread(scene, qs, prune=0.05, workers=2))
 
 
 def test_a_cold_scene_sweep_on_a_dask_local_cluster_equals_the_serial_run(arm_sweep, dask_scheduler):
-    from harness import scene_run as sr
+    from harness.workloads import scene_run as sr
 
     scene, qs, serial = arm_sweep
     assert_same_sweep(serial, sr.run_scene_spread(scene, qs, prune=0.05, scheduler=dask_scheduler))
 
 
 def tiny_campaign(**where):
-    """A small fuzz campaign (harness.fuzz.campaign): three families, 12 cases of 40 pose pairs, coal as
+    """A small fuzz campaign (harness.suites.fuzz.campaign): three families, 12 cases of 40 pose pairs, coal as
     the peer, rounds of 3 one-case tasks; its state after the run."""
-    from harness.fuzz.campaign import CampaignConfig, run
+    from harness.suites.fuzz.campaign import CampaignConfig, run
 
     config = CampaignConfig(seed=7, families=["primitives", "hull-needle", "cse"], poses=40,
                             peers=["coal"], cases_per_task=1)
@@ -171,7 +171,7 @@ def tiny_campaign(**where):
 
 
 def assert_same_campaign(serial, spread) -> None:
-    from harness.fuzz.campaign import table
+    from harness.suites.fuzz.campaign import table
 
     assert (spread.next_case, spread.rounds) == (serial.next_case, serial.rounds) == (12, 4)
     pd.testing.assert_frame_equal(table(serial), table(spread), check_exact=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import continuity as ct
+from harness.suites.continuity import witness_continuity as ct
 
 R = 2.0
 
@@ -70,7 +70,7 @@ def test_engines_optional_pch_rows():
 
 def _contact_rows(a, b):
     from datasets import load_object
-    from harness import contact_continuity as cc
+    from harness.suites.continuity import contact_continuity as cc
 
     config = cc.ContactConfig(paths=2, grid=101, seed=1)
     bodies = cc.build_bodies(config, load_object)

@@ -329,7 +329,7 @@ def test_mujoco_free_joint_columns_equal_differences_along_mj_integrate_pos(floa
 def kuka_pink():
     pytest.importorskip("pink", reason="pink not installed (pip install pin-pink)")
     from datasets.robots import robot_files
-    from harness import pinocchio_peer
+    from harness.engines import pinocchio_peer
 
     files = robot_files("kuka_iiwa")
     scene = Scene.from_urdf(files.urdf, mesh_root=files.mesh_root, policy="pch")

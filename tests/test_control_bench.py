@@ -26,8 +26,8 @@ def _robots_installed() -> bool:
 
 pytestmark = pytest.mark.skipif(not _robots_installed(), reason="example-robot-data (pip) ships the test robot")
 
-from harness.control.controller import STATUS_SOLVED, ControlParams, Controller, SpqSource, solve_qp  # noqa: E402
-from harness.control.tasks import frozen_mask, make_tasks, setup  # noqa: E402
+from harness.suites.control.controller import STATUS_SOLVED, ControlParams, Controller, SpqSource, solve_qp  # noqa: E402
+from harness.suites.control.tasks import frozen_mask, make_tasks, setup  # noqa: E402
 
 ROBOT = "ur5_robot"
 FD_STEP_S = 1e-6  # s: the finite difference of d along the commanded q̇
@@ -36,7 +36,7 @@ RATE_TOL = 2e-4  # m/s: solver tolerance and finite-difference error on ḋ
 
 @pytest.fixture(scope="module")
 def scenes():
-    from harness.control.scenes import robot_scenes
+    from harness.suites.control.scenes import robot_scenes
 
     return robot_scenes(ROBOT, policies=["pch", "stp"])
 
@@ -97,7 +97,7 @@ def test_joint_limits_are_never_crossed_when_the_target_pulls_past_them(scenes, 
 
 def test_a_target_out_of_reach_gives_a_stated_task_error(scenes, frozen):
     """A target 3 m above the base: the run ends with its statuses and a final task error, no exception."""
-    from harness.control.metrics import run_metrics
+    from harness.suites.control.metrics import run_metrics
 
     params = ControlParams()
     base = make_tasks(scenes.base, ROBOT, 1, seed=0)[0]
@@ -114,7 +114,7 @@ def test_a_singular_task_gives_finite_commands_and_a_stated_error(scenes, frozen
     """A hand point fixed to the base link (no active joint moves it: its Jacobian is zero) with a target
     away from it: the task is singular, the damping and the posture keep the QP well posed, so every step
     solves with finite commands, the hand cannot move and the task error says so."""
-    from harness.control.metrics import run_metrics
+    from harness.suites.control.metrics import run_metrics
 
     params = ControlParams()
     base = make_tasks(scenes.base, ROBOT, 1, seed=0)[0]
@@ -131,7 +131,7 @@ def test_a_start_below_ds_gives_a_stated_status(scenes, frozen):
     """An obstacle put through the tool at the start (a pair below ds, overlapping): every step has a
     stated QP status (solved, pushing the pair apart, or failed with q̇ = 0), never an exception, and
     the rows ask for separation (h < 0)."""
-    from harness.control.scenes import obstacle_objects
+    from harness.suites.control.scenes import obstacle_objects
     from spq.scene import Scene
 
     base = scenes.base
@@ -160,7 +160,7 @@ def test_the_same_qp_fed_by_pinocchio_or_mujoco_commands_what_spq_pch_commands(s
     MuJoCo (mj_geomDistance, mj_jac) on the same hulls commands the same q̇ as fed by spq's PCH scene."""
     pytest.importorskip("pinocchio")
     pytest.importorskip("mujoco")
-    from harness.control.bench import run_method
+    from harness.suites.control.runs import run_method
 
     params = ControlParams()
     task = make_tasks(scenes.base, ROBOT, 1, seed=3)[0]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from datasets import load_object
-from harness import crosscheck as cc
+from harness.suites.crosscheck import scoring as cc
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The independent depth oracle (harness.depth_oracle): its supports against brute force and closed
+"""The independent depth oracle (harness.references.depth_oracle): its supports against brute force and closed
 forms, and spq's signed distance against it on pairs with an STP-BV or a superellipsoid."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import spq
-from harness import depth_oracle as do
+from harness.references import depth_oracle as do
 from tests.conftest import require_shared_datasets
 
 BOXY = (0.08, 0.05, 0.12, 0.42, 1.02)  # a, b, c (m), e1, e2: the fitted kuka_link_4 cover's exponents

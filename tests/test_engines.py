@@ -317,7 +317,7 @@ def test_isolated_engine_survives_native_crashes():
     """A query that kills the engine's process comes back 'failed'; the others keep the engine's answers."""
     from datasets import load_object
     from harness.engines.isolated import CRASHED, IsolatedEngine
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
 
     a, b = load_object("kuka_link_4"), load_object("panda_link_2")
     pa, pb = random_poses(8, 6, 0.12)  # one overlapping pose of eight
@@ -341,7 +341,7 @@ def test_isolated_engine_survives_a_hang(monkeypatch):
     the others keep the engine's answers."""
     from datasets import load_object
     from harness.engines import isolated as iso
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
 
     monkeypatch.setattr(iso, "HANG_BASE_S", 1.0)
     a, b = load_object("kuka_link_4"), load_object("panda_link_2")
@@ -363,7 +363,7 @@ def test_isolated_engine_gives_the_engines_own_answers():
     they are)."""
     from datasets import load_object
     from harness.engines.isolated import IsolatedEngine
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
 
     a, b = load_object("kuka_link_4"), load_object("panda_link_2")
     pa, pb = random_poses(50, 1, 0.12)

@@ -169,8 +169,8 @@ def test_spq_distances_agree_with_coal_on_loaded_robots(name):
     """Oracle: coal (another GJK/EPA, its own Sphere/Box and Convex) at the same body poses."""
     coal = pytest.importorskip("coal")
     from harness.engines.coal_engine import CoalPair
-    from harness.pinocchio_peer import coal_geometry
-    from harness.robot_poses import random_configurations
+    from harness.engines.pinocchio_peer import coal_geometry
+    from harness.workloads.robot_poses import random_configurations
 
     pch = er.load_scene(name)
     auto = pch.with_policy("auto")
@@ -194,8 +194,8 @@ def test_spq_distances_agree_with_coal_on_loaded_robots(name):
 
 def test_pinocchio_places_the_loaded_bodies_where_spq_does():
     pytest.importorskip("pinocchio")
-    from harness import pinocchio_peer as pp
-    from harness.robot_poses import random_configurations
+    from harness.engines import pinocchio_peer as pp
+    from harness.workloads.robot_poses import random_configurations
 
     scene = er.load_scene("a1")
     peer = pp.build(scene, er.robot_urdf("a1"))

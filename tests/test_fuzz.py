@@ -1,4 +1,4 @@
-"""The fuzz campaign (harness/fuzz/): families draw valid, reproducible cases; the judge finds a planted
+"""The fuzz campaign (harness/suites/fuzz/): families draw valid, reproducible cases; the judge finds a planted
 bug and clears spq; the shrinker brings a planted-bug case down to a few points; a campaign resumes
 where it stopped; and every reproducer saved in tests/fixtures/fuzz/ is replayed against the exact
 reference or the depth oracle."""
@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.fuzz.families import FAMILIES, draw_case
-from harness.fuzz.judge import judge_case
+from harness.suites.fuzz.families import FAMILIES, draw_case
+from harness.suites.fuzz.judge import judge_case
 
 FIXTURES = Path(__file__).parent / "fixtures" / "fuzz"
 
@@ -24,7 +24,7 @@ def _rigid(poses) -> bool:
 
 @pytest.mark.parametrize("family", sorted(FAMILIES))
 def test_family_draws_a_reproducible_case_of_buildable_shapes(family):
-    from harness.fuzz.oracle import spq_shape
+    from harness.suites.fuzz.oracle import spq_shape
 
     first = draw_case(family, np.random.default_rng([3, 1]), 20)
     again = draw_case(family, np.random.default_rng([3, 1]), 20)
@@ -37,8 +37,8 @@ def test_family_draws_a_reproducible_case_of_buildable_shapes(family):
 
 def test_judge_clears_spq_and_catches_a_planted_early_stop():
     """On a hull case spq has no wrong query (every query referenced, against the exact reference); the
-    planted early stop (harness.fuzz.plant) is wrong on some."""
-    from harness.fuzz.plant import planted
+    planted early stop (harness.suites.fuzz.plant) is wrong on some."""
+    from harness.suites.fuzz.plant import planted
 
     rng = np.random.default_rng([0, 11])
     a, b, pa, pb, _ = draw_case("hull-random", rng, 60)
@@ -53,8 +53,8 @@ def test_judge_clears_spq_and_catches_a_planted_early_stop():
 
 
 def test_shrinker_brings_a_planted_bug_down_to_ten_points():
-    from harness.fuzz.plant import planted
-    from harness.fuzz.shrink import case_of, points_count, shrink, still_bad
+    from harness.suites.fuzz.plant import planted
+    from harness.suites.fuzz.shrink import case_of, points_count, shrink, still_bad
 
     plant = planted("early-stop")
     for k in range(20):  # the first hull-random case with a wrong planted answer
@@ -73,7 +73,7 @@ def test_shrinker_brings_a_planted_bug_down_to_ten_points():
 
 
 def test_campaign_resumes_where_it_stopped(tmp_path):
-    from harness.fuzz.campaign import CampaignConfig, run, table
+    from harness.suites.fuzz.campaign import CampaignConfig, run, table
 
     config = CampaignConfig(seed=5, families=["primitives", "hull-needle"], poses=30, peers=[], cases_per_task=1)
     whole = run(config, None, max_queries=4 * 60, tasks_per_round=2)
@@ -94,7 +94,7 @@ def _fixtures():
 def test_reproducer_is_answered_right_now(path):
     """A shrunk case the campaign once found wrong or failed: spq's answer now agrees with the reference
     (exact for two polytopes, else the depth oracle). A case still open says so in 'known' (xfail)."""
-    from harness.fuzz.shrink import still_bad
+    from harness.suites.fuzz.shrink import still_bad
 
     case = json.loads(path.read_text())
     bad = still_bad(case)

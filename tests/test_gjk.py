@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import spq
-from harness.reference import reference_distance
+from harness.references.minkowski import reference_distance
 
 
 def pose(rot=None, t=(0, 0, 0)):

@@ -15,7 +15,7 @@ import pytest
 
 from datasets.paths import pybullet_data_dir
 from datasets.robots import ROBOTS, link_shape_file, robot_files, robot_urdf
-from harness.pybullet_kinematics import PybulletRobot, quaternion_matrix
+from harness.references.pybullet_kinematics import PybulletRobot, quaternion_matrix
 from spq.io.urdf import read_urdf
 from spq.kinematics import CONTINUOUS, FIXED, PRISMATIC, REVOLUTE, MeshGeometry, PrimitiveGeometry, RobotModel
 

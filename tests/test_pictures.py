@@ -60,7 +60,7 @@ def test_the_tables_name_the_closest_pairs_in_order(pictures_dir):
 
 def test_moving_b_by_the_penetration_vector_makes_the_pair_touch():
     from datasets import load_object
-    from harness import pictures as pic
+    from harness.suites.pictures import paper_figures as pic
 
     p = pic.penetration("kuka_link_4", "kuka_link_2", 0.005, 2.0, 0.02, 0, 3e-3)
     assert p.depth == pytest.approx(0.02, rel=1e-5) and p.status == "overlapping"
@@ -74,8 +74,8 @@ def test_moving_b_by_the_penetration_vector_makes_the_pair_touch():
 
 
 def test_the_closest_posture_is_the_least_distance_without_overlap():
-    from harness import pictures as pic
-    from harness.robot_poses import smooth_trajectory
+    from harness.suites.pictures import paper_figures as pic
+    from harness.workloads.robot_poses import smooth_trajectory
 
     posture = pic.closest_posture("kuka_iiwa", 60, 0, 3, 3e-3)
     scene, _ = pic.robot_scene("kuka_iiwa")

@@ -9,9 +9,9 @@ import pytest
 pytest.importorskip("pinocchio", reason="pin not installed (pip install pin)")
 
 from datasets.robots import robot_files  # noqa: E402
-from harness import pinocchio_peer as pp  # noqa: E402
-from harness.robot_bench import RobotBenchConfig, load_scene  # noqa: E402
-from harness.robot_poses import random_configurations  # noqa: E402
+from harness.engines import pinocchio_peer as pp  # noqa: E402
+from harness.suites.robot.robot_bench import RobotBenchConfig, load_scene  # noqa: E402
+from harness.workloads.robot_poses import random_configurations  # noqa: E402
 
 pytestmark = pytest.mark.engines
 
@@ -53,7 +53,7 @@ def test_unknown_variant_is_refused(kuka):
 def test_without_pin_the_robot_bench_says_why_pinocchio_did_not_run(kuka, monkeypatch):
     import sys
 
-    from harness.robot_bench import pinocchio_table
+    from harness.suites.robot.robot_bench import pinocchio_table
 
     monkeypatch.setitem(sys.modules, "pinocchio", None)
     scene, _ = kuka

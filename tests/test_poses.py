@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from datasets import load_object
-from harness.poses import BUCKETS, PoseSuite, body_size, bucket_suite, pose_matrix, random_poses
-from harness.reference import reference_distance
+from harness.references.minkowski import reference_distance
+from harness.workloads.poses import BUCKETS, PoseSuite, body_size, bucket_suite, pose_matrix, random_poses
 
 # Separated buckets must equal their target to 1e-12 relative; at the closest bucket (1e-4 L, ~2e-5 m
 # for a robot link) that is below the rounding of coordinates of size L (1 ulp of 0.2 m = 2.8e-17 m

@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from datasets import load_object
 from datasets.generated import random_hull
-from harness.reference import (
+from harness.references.minkowski import (
     TOUCH_TOL,
     MinkowskiReference,
     closest_points_on_triangles,

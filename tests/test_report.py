@@ -19,7 +19,7 @@ def report_dir(tmp_path_factory):
 
 def test_the_report_has_every_section_and_embeds_every_chart(report_dir):
     page = (report_dir / "index.html").read_text()
-    from harness.report_suite import SUITES
+    from harness.report.assemble import SUITES
 
     titles = re.findall(r"<h2 id='s\d+'>(.*?)</h2>", page)
     assert len(titles) == len(SUITES)

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import robot_bench as rb
 from harness.cli import main
+from harness.suites.robot import robot_bench as rb
 
 
 class _Result:
@@ -74,7 +74,7 @@ def test_bench_robot_on_the_kuka_writes_its_tables_and_figures_and_agrees_with_c
 def test_blockwise_timing_gives_the_results_of_one_call(coherent):
     """best_run times blocks of configurations in separate calls; the warm starts carry across the
     blocks, so its results must be those of one call over all of them (the oracle), bit for bit."""
-    from harness.robot_poses import random_configurations, smooth_trajectory
+    from harness.workloads.robot_poses import random_configurations, smooth_trajectory
 
     config = rb.RobotBenchConfig(robot="kuka_iiwa")
     scene = rb.load_scene(config, "auto")

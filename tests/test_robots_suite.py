@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import robots_bench as rsb
 from harness.cli import build_parser, main
+from harness.suites.robots import robots_bench as rsb
 
 pytest.importorskip("pinocchio", reason="pin not installed (pip install pin)")
 try:

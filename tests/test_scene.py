@@ -26,7 +26,7 @@ import pytest
 
 import spq
 from datasets.robots import ROBOTS
-from harness.robot_poses import smooth_trajectory
+from harness.workloads.robot_poses import smooth_trajectory
 from spq.kernels.gjk import OUT_DISTANCE, OUT_SIZE
 from spq.scene import Scene
 from tests.conftest import require_shared_datasets

@@ -1,4 +1,4 @@
-"""Scene files (harness.scene_file) and ``spq scene``: the examples in scenes/ parse and run, the CSV
+"""Scene files (harness.workloads.scene_file) and ``spq scene``: the examples in scenes/ parse and run, the CSV
 pose source reads back what was written, and mistakes in a file are ValueErrors that say what is wrong."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import scene_file as sf
+from harness.workloads import scene_file as sf
 from harness.cli import main
-from harness.robot_poses import random_configurations, read_configurations
+from harness.workloads.robot_poses import random_configurations, read_configurations
 from tests.conftest import REPO_ROOT, require_shared_datasets
 
 SCENES = REPO_ROOT / "scenes"

@@ -72,7 +72,7 @@ def pinocchio_rows(scene: Scene, q: np.ndarray, res) -> np.ndarray:
     witness points, nᵀ(J_B(p_B) − J_A(p_A)), columns mapped back onto spq's q (mimic joints summed
     into their master with their multiplier)."""
     pin = pytest.importorskip("pinocchio")
-    from harness import pinocchio_peer
+    from harness.engines import pinocchio_peer
 
     peer = pinocchio_peer.build(scene, robot_files("jvrc1").urdf)
     model, data = peer.model, peer.data

@@ -2,7 +2,7 @@
 
 Oracles (never spq itself):
 
-- harness.reference.MinkowskiReference: the exact signed distance of two polytopes from the hull of
+- harness.references.minkowski.MinkowskiReference: the exact signed distance of two polytopes from the hull of
   their Minkowski difference (scipy's Qhull), with its own witness points and normal;
 - closed forms for primitives (spheres, capsules, axis-aligned boxes, containment);
 - the hulls' own plane equations for "on the surface" checks;
@@ -17,8 +17,8 @@ from scipy.spatial.transform import Rotation
 
 import spq
 from datasets import load_object
-from harness.poses import bucket_suite, pose_matrix
-from harness.reference import MinkowskiReference, reference_distance
+from harness.references.minkowski import MinkowskiReference, reference_distance
+from harness.workloads.poses import bucket_suite, pose_matrix
 from spq.scene import Scene
 
 OVERLAP_BUCKETS = ["overlap-1e-4", "overlap-1e-3", "overlap-1e-2", "overlap-1e-1"]
@@ -216,8 +216,8 @@ def test_an_iteration_cap_gives_failed_with_valid_bounds():
     """Deep overlaps of two superellipsoids (round: the EPA converges only linearly) with the least
     budget, max_iter=1 (32 EPA expansions): queries decline, and their bounds still hold the depth
     oracle's answer; the default budget meets it."""
-    from harness.depth_oracle import body_of
-    from harness.depth_oracle import signed_distance as oracle_sd
+    from harness.references.depth_oracle import body_of
+    from harness.references.depth_oracle import signed_distance as oracle_sd
 
     a = spq.Superellipsoid(0.3, 0.2, 0.15, 0.8, 0.9)
     b = spq.Superellipsoid(0.25, 0.2, 0.1, 1.0, 0.7)
@@ -334,8 +334,8 @@ def test_patch_rounds_skipped_where_the_hulls_overlap_could_not_have_closed():
     from tests.conftest import require_shared_datasets
 
     require_shared_datasets()
-    from harness.robot_bench import RobotBenchConfig, load_scene
-    from harness.robot_poses import random_configurations
+    from harness.suites.robot.robot_bench import RobotBenchConfig, load_scene
+    from harness.workloads.robot_poses import random_configurations
     from spq.kernels.batch import F_MARGIN_A, F_MARGIN_B, I_KIND_A, I_KIND_B
     from spq.kernels.gjk import (OUT_DISTANCE, OUT_NORMAL, OUT_SIZE, OUT_STATUS, OVERLAPPING, PROBE_END, PROBE_ROW,
                                  WARM_SIZE)

@@ -203,13 +203,13 @@ def test_srdf_reasons_honours_only_the_named_reasons():
 
 def test_sampling_agrees_with_coal_on_the_same_hulls():
     """disabled_pairs_by_sampling on JVRC-1's PCH scene against pinocchio's kinematics and coal's
-    distances on the same hulls (harness.pinocchio_peer) at other random configurations: no pair that
+    distances on the same hulls (harness.engines.pinocchio_peer) at other random configurations: no pair that
     coal finds in collision in 2% of them or more is 'Never' (2200 samples would all miss a pair in
     collision 1% of the time with probability 2e-10); the pairs coal finds overlapping at the default
     configuration are Adjacent or Default, and every Default pair is in collision there for coal."""
     require_shared_datasets()
     from datasets.robots import robot_files
-    from harness import pinocchio_peer
+    from harness.engines import pinocchio_peer
     from spq.collision_pairs import DEFAULT, NEVER, disabled_pairs_by_sampling
     from spq.scene import Scene
 

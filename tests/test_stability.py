@@ -34,7 +34,7 @@ def test_stability_quick_writes_tables_and_spq_is_never_wrong(tmp_path):
     assert (spq_depth.depth_abs_error.dropna() <= spq_depth.allowed_depth_error.dropna()).all()
     assert (tmp_path / "stability_depth_worst.csv").stat().st_size > 0
     # the generated cases: one per fuzz family, judged and drawn into the heat map
-    from harness.fuzz.families import FAMILIES
+    from harness.suites.fuzz.families import FAMILIES
 
     generated = pd.read_csv(tmp_path / "stability_generated_detail.csv.gz")
     assert set(generated.family) == set(FAMILIES)
@@ -52,7 +52,7 @@ def test_stability_quick_writes_tables_and_spq_is_never_wrong(tmp_path):
 
 
 def test_depth_verdicts():
-    from harness.stability import depth_verdict
+    from harness.suites.stability.hard_cases import depth_verdict
 
     assert depth_verdict("spq", True, "overlapping", -0.1, -0.1, 1.0)[0] == "ok"
     assert depth_verdict("spq", True, "overlapping", -0.1 + 1e-6, -0.1, 1.0)[0] == "wrong"
@@ -62,7 +62,7 @@ def test_depth_verdicts():
 
 
 def test_generated_case_is_a_pure_function_of_seed_and_index():
-    from harness import stability as st
+    from harness.suites.stability import hard_cases as st
 
     k = 3 * st.POSES_PER_DRAW + 7
     later = st.generated_case(0, k)
@@ -81,8 +81,8 @@ def test_generated_case_is_a_pure_function_of_seed_and_index():
 
 
 def test_full_config_has_at_least_1e4_cases_over_every_family():
-    from harness import stability as st
-    from harness.fuzz.families import FAMILIES
+    from harness.suites.fuzz.families import FAMILIES
+    from harness.suites.stability import hard_cases as st
 
     config = st.StabilityConfig()
     indices = st.generated_indices(config)
@@ -128,8 +128,8 @@ class _Shifted:
 
 
 def test_a_wrong_peer_is_judged_wrong_against_the_exact_reference():
-    from harness import stability as st
     from harness.engines import available_engines
+    from harness.suites.stability import hard_cases as st
 
     j = st.GENERATED_SCHEDULE.index("hull-random")
     rows = pd.DataFrame(st.draw_rows(0, j, (0, 1, 2, 3), {**available_engines(["spq"]), "shifted": _Shifted(1e-3)}))
@@ -145,9 +145,9 @@ def test_a_wrong_spq_is_judged_wrong_against_the_fuzz_oracle(monkeypatch, shift)
     """spq's answers on a non-polytope pair (separated poses) shifted by 1 mm: below the oracle's lower
     bound of the signed distance, or above the distance of two points of the bodies (the support points
     along the oracle's or spq's normal), so 'wrong', not merely disputed, whichever way it was settled."""
-    from harness import stability as st
     from harness.engines import available_engines
-    from harness.fuzz import judge
+    from harness.suites.fuzz import judge
+    from harness.suites.stability import hard_cases as st
     from spq.kernels.gjk import OUT_DISTANCE
 
     true_outputs = judge.spq_outputs

@@ -2,9 +2,9 @@
 degenerate clouds that showed why, and a seeded run of the construction fuzz family.
 
 Oracles: the definition of a face (its ball of radius rho = R - r holds every point), a closed surface
-(V - E + F = 2), and the judge of harness.fuzz_construction, which checks the built volume's support
+(V - E + F = 2), and the judge of harness.suites.fuzz.construction, which checks the built volume's support
 against the points it must cover, against every face's ball and, for small clouds, against the
-brute-force support of harness.stp_oracle (no topology).
+brute-force support of harness.references.stp_oracle (no topology).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.fuzz_construction import case, check_construction, construction_cases
+from harness.suites.fuzz.construction import case, check_construction, construction_cases
 from spq.shapes.polyhedron import Polyhedron
 from spq.stp.construction import build_topology, enclosing_radius
 
@@ -143,7 +143,7 @@ VOLUME_FIXTURES = sorted((Path(__file__).parent / "fixtures" / "stp_volume").glo
 def test_volumes_with_a_torus_wider_than_half_a_turn_match_the_oracle(path):
     # R 1e-4 .. 2e-3 above its minimum over 4 and 7 points: Q is a lens whose edge runs more than half
     # way round one circle, a region two half-spaces could not hold (12 % and 53 % of directions had no
-    # owner); the judge compares the support with harness.stp_oracle's brute force
+    # owner); the judge compares the support with harness.references.stp_oracle's brute force
     import json
 
     import spq
@@ -161,7 +161,7 @@ def test_volumes_with_a_torus_wider_than_half_a_turn_match_the_oracle(path):
 
 
 def test_a_right_triangle_at_its_enclosing_radius_is_a_ball_owned_by_its_two_faces():
-    # harness.fuzz_construction seed 3 case 235: three points of a box face, R - r their enclosing
+    # harness.suites.fuzz.construction seed 3 case 235: three points of a box face, R - r their enclosing
     # radius; the hypotenuse is a diameter, so the plane through it and the centre was undefined
     # (a NaN boundary: no direction had an owner)
     c = case(3, 235)
@@ -186,7 +186,7 @@ def test_a_right_triangle_at_its_enclosing_radius_is_a_ball_owned_by_its_two_fac
     (11, 416, "qhull left a solid tetrahedron out: a dent in the triangulation"),
 ])
 def test_fuzz_cases_that_failed_now_build(seed, index, what):
-    # replayed from python -m harness.fuzz_construction --seed S (case index I): each failed the
+    # replayed from python -m harness.suites.fuzz.construction --seed S (case index I): each failed the
     # construction (before this fix, or on the way to it)
     c = case(seed, index)
     verdict, detail = check_construction(c["points"], c["r"], c["R"])
@@ -194,7 +194,7 @@ def test_fuzz_cases_that_failed_now_build(seed, index, what):
 
 
 def test_construction_family_never_fails_and_its_volumes_cover_their_clouds():
-    # 150 seeded clouds from every family of harness.fuzz_construction; the construction must build
+    # 150 seeded clouds from every family of harness.suites.fuzz.construction; the construction must build
     # them all, with a topology the judge accepts ('construction:' checks), and the volume built on it
     # must hold its cloud and match the brute-force support ('volume:' checks)
     failed, wrong = [], []

@@ -9,7 +9,7 @@ import pytest
 import spq
 from datasets import load_object
 from harness.engines.coal_engine import CoalEngine
-from harness.poses import random_poses
+from harness.workloads.poses import random_poses
 from spq.kernels import gjk
 from spq.shapes.stpbv import STPBV
 from tests.descent_oracle import plain_descent

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.stp_oracle import (
+from harness.references.stp_oracle import (
     brute_force_centres_many,
     brute_force_support,
     brute_force_support_many,
@@ -205,7 +205,7 @@ def test_oracle_finds_the_files_face_centres(shared_datasets, name, tol):
 
 
 def test_the_vectorised_brute_force_chooses_as_the_loop_does():
-    from harness.stp_oracle import BruteForceSTP
+    from harness.references.stp_oracle import BruteForceSTP
 
     rng = np.random.default_rng(3)
     pts = rng.normal(size=(12, 3)) * 0.05

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import spq
+from harness.references.stp_oracle import brute_force_support_many
 from spq.shapes.stpbv import STPBV
-from harness.stp_oracle import brute_force_support_many
 
 SAMPLE_FILES = [
     ("sch-samples", "sample_stpbv1.txt"),
@@ -80,7 +80,7 @@ def test_write_then_read_gives_the_same_object(shared_datasets, tmp_path):
 
 
 def test_warm_search_along_a_smooth_path_takes_about_zero_steps(shared_datasets):
-    from harness.stp_scaling import smooth_directions
+    from harness.suites.support.stp_scaling import smooth_directions
 
     stp = STPBV.from_sch_file(shared_datasets / "sch-samples" / "sample_stp_p.txt")
     d = smooth_directions(20000, 0)
@@ -193,8 +193,8 @@ def test_the_smallest_admissible_r_in_the_message_is_accepted():
 def test_from_mesh_builds_the_same_stp_bv_as_the_mesh_vertices():
     import trimesh
 
-    from datasets.robot_links import ROBOT_LINKS
     from datasets.paths import pybullet_data_dir
+    from datasets.robot_links import ROBOT_LINKS
 
     path = pybullet_data_dir() / ROBOT_LINKS["kuka_link_4"]
     from_mesh = STPBV.from_mesh(path, 0.005, 2.0)

@@ -170,7 +170,7 @@ def _ellipsoid_to_box_upper(axes, half, pose_a, pose_b):
 @pytest.mark.parametrize("other", ["ellipsoid", "box"])
 def test_ellipsoid_distances_agree_with_coal(other):
     coal = pytest.importorskip("coal")
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
 
     poses_a, poses_b = random_poses(1000, 11, 0.2)
     A = spq.Ellipsoid(0.12, 0.08, 0.05)

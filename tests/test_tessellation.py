@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 import spq
-from harness.stp_oracle import brute_force_support_many
+from harness.references.stp_oracle import brute_force_support_many
 from spq import tessellation as ts
 
 
@@ -217,7 +217,7 @@ def test_a_triangle_within_one_patch_is_given_that_patch():
 
 @pytest.mark.parametrize("robot", ["kuka_iiwa", "panda"])
 def test_every_body_of_a_robot_meshes_watertight_within_its_tolerance(robot):
-    from harness.robot_bench import RobotBenchConfig, load_scene
+    from harness.suites.robot.robot_bench import RobotBenchConfig, load_scene
 
     scene = load_scene(RobotBenchConfig(robot=robot), "stp-both")
     for body in scene.bodies:

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import tradeoff as tr
 from harness.cli import main
+from harness.suites.tradeoff import sweeps as tr
 
 
 def test_pareto_front():

@@ -30,7 +30,7 @@ def scene_file() -> Path:
 
 @pytest.fixture(scope="module")
 def viewer():
-    from harness.viewer import serve
+    from harness.report.viewer import serve
 
     v = serve([str(scene_file())], port=0)
     yield v
@@ -101,7 +101,7 @@ def test_the_display_choice_swaps_every_body_to_that_volume(viewer):
 
 
 def test_the_pair_view_gives_spq_signed_distance():
-    from harness.viewer import DEFAULT_PORT, PairView, pair_side, require_viser
+    from harness.report.viewer import DEFAULT_PORT, PairView, pair_side, require_viser
 
     viser = require_viser()
     server = viser.ViserServer(host="127.0.0.1", port=DEFAULT_PORT + 17, verbose=False)

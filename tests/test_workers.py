@@ -10,7 +10,7 @@ import pytest
 import spq
 from datasets import load_object
 from datasets.robots import ROBOTS
-from harness.poses import random_poses
+from harness.workloads.poses import random_poses
 from spq.workers import MAX_WORKERS, chunk_bounds
 
 N_POSES = 2048  # 4 chunks on 2 threads (MIN_PAIR_QUERIES = 512)

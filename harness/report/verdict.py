@@ -16,7 +16,7 @@ import pandas as pd
 
 from harness.report.html import Lead
 
-# section titles the verdict links to (harness.report_suite's)
+# section titles the verdict links to (harness.report.assemble's)
 CROSSCHECK = "Cross-check against the exact reference"
 STABILITY = "Stability where methods fail"
 BENCH = "Throughput, PCH-PCH (every engine)"

@@ -8,9 +8,9 @@ written as CSV (compressed when the name ends in .gz), figures (drawn when writt
 documents (Markdown pages a suite composes itself), the run's metadata, the lines a terminal shows
 and an exit code (0 unless the suite judges, as ``check`` does). A suite computes; it writes
 nothing itself. The command line (harness/cli.py) maps its arguments onto a config, runs the suite,
-writes its output and prints its lines; ``spq report`` (harness/report_suite.py) runs the same
+writes its output and prints its lines; ``spq report`` (harness/report/assemble.py) runs the same
 suites with its own configs and builds its sections from the files written; ``spq check``
-(harness/suites/check.py) runs the crosscheck, stability and depth suites at fixed seeds and judges
+(harness/suites/check/__init__.py) runs the crosscheck, stability and depth suites at fixed seeds and judges
 their raw tables.
 """
 

@@ -1,5 +1,5 @@
 """The depth suite: spq's penetration depth on STP-BV and CSE-BV pairs against an independent oracle
-that shares no code with spq's kernels (harness.depth_oracle)."""
+that shares no code with spq's kernels (harness.references.depth_oracle)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ class Config:
 
 def run(config: Config) -> Output:
     from datasets import load_object
-    from harness import depth_oracle as do
+    from harness.references import depth_oracle as do
     from harness.report.meta import run_metadata
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
@@ -36,7 +36,7 @@ def run(config: Config) -> Output:
                         stp_points=do.STP_POINTS, tol=DEFAULT_TOL_ABS, rel_tol=DEFAULT_TOL_REL,
                         seconds=round(time.perf_counter() - start, 1))
     notes = ("spq's signed distance (batched, default tolerances) against an independent oracle that shares no code "
-             "with spq's kernels (harness/depth_oracle.py: min over unit n of h_B(n) + h_A(-n) from closed-form "
+             "with spq's kernels (harness/references/depth_oracle.py: min over unit n of h_B(n) + h_A(-n) from closed-form "
              "superellipsoid supports, brute-force STP-BV supports from the generating points, and hull vertices; "
              f"{do.STARTS} starts, SLSQP from the {do.POLISH} best). Poses: per overlap bucket, depth = bucket x "
              "L, L = mean bounding radius; B moved along the oracle's normal to the target depth. contains: spq's "

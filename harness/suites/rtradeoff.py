@@ -1,5 +1,5 @@
 """The R-tradeoff suite: what an STP-BV's big radius R trades (features, volume excess, query speed,
-witness smoothness), with a recommended R (harness.tradeoff)."""
+witness smoothness), with a recommended R (harness.suites.tradeoff.sweeps)."""
 
 from __future__ import annotations
 
@@ -25,8 +25,8 @@ def run(config: Config) -> Output:
     import numpy as np
 
     from datasets import load_object
-    from harness import tradeoff as tr
     from harness.report.meta import run_metadata
+    from harness.suites.tradeoff import sweeps as tr
     from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
 
     start = time.perf_counter()
@@ -47,12 +47,12 @@ def run(config: Config) -> Output:
                         seconds=round(time.perf_counter() - start, 1))
     notes = (f"STP-BVs of {obj}'s {facts['points']} hull vertices, r = {cfg.r} m, R swept from just above "
              f"the smallest admissible R = r + enclosing radius = {facts['R_min']:.6g} m (log-spaced in R - R_min). "
-             "features: patches (stp.n_patches). volume_excess: Monte Carlo volume (harness.table1.monte_carlo_volume, "
+             "features: patches (stp.n_patches). volume_excess: Monte Carlo volume (harness.suites.table1.bv_rates.monte_carlo_volume, "
              f"{cfg.volume_samples} samples, seed {config.seed}, the same box and points for every R) / hull volume "
              f"({facts['hull_volume']:.6g} m^3, qhull) - 1. queries_per_s: spq.distances STP-PCH (the STP-BV against "
-             f"the link's hull) on {cfg.poses} random poses (harness.poses.random_poses, ±{cfg.translation_range} m), "
+             f"the link's hull) on {cfg.poses} random poses (harness.workloads.poses.random_poses, ±{cfg.translation_range} m), "
              f"default tolerance, best of {cfg.repeats}. witness_lipschitz: max |Δp| / step of the witness points "
-             "(m/rad) for STP-PCH on harness.continuity's parallel_faces trajectory at one step (step_rad), on a "
+             "(m/rad) for STP-PCH on harness.suites.continuity.witness_continuity's parallel_faces trajectory at one step (step_rad), on a "
              f"{cfg.grid}-point grid plus points straddling the {cfg.jumps} largest witness jumps.")
     title = f"STP-BV of {obj}, r = {cfg.r} m: what R trades"
     return Output(

@@ -6,7 +6,7 @@ check that the results are the same.
 - a cold robot-scene sweep: ``Scene.distances_many`` over random configurations, threads; compared
   bit for bit;
 - the crosscheck suite (every engine against the exact reference, and spq against coal), on N local
-  processes (harness.cluster); its tables compared exactly (timing columns aside);
+  processes (harness.parallel.cluster); its tables compared exactly (timing columns aside);
 - the same crosscheck on a Dask LocalCluster of N processes, once, compared with the serial run.
 
 Each round times the one-worker run, then the N-worker run, so that a busy spell of a shared machine
@@ -94,7 +94,7 @@ def run(config: Config) -> Output:
     import spq
     from datasets import load_object
     from datasets.robots import robot_files
-    from harness.poses import random_poses
+    from harness.workloads.poses import random_poses
     from harness.report.meta import run_metadata
     from harness.suites import crosscheck
     from threadpoolctl import threadpool_limits

@@ -1,0 +1,63 @@
+"""The throughput suite: queries per second of every engine on one link's random pose pairs, PCH-PCH
+(kind "pch") or spq's STP-PCH and STP-STP beside it (kind "stp")."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from harness.engines.mujoco_engine import PIPELINE_NOTE as MUJOCO_PIPELINE
+from harness.suites import Output, Table, frame_lines
+
+PAIRS = {"pch": ["PCH-PCH"], "stp": ["PCH-PCH", "STP-PCH", "STP-STP"]}
+
+
+@dataclass
+class Config:
+    kind: str = "pch"  # "pch" or "stp"
+    object: str = "kuka_link_4"  # dataset name or mesh path
+    poses: int = 20000
+    seed: int = 0
+    range: float = 0.3  # m: translations uniform in ±range
+    repeats: int = 3
+    engines: list[str] | None = None  # None: every registered engine that imports
+    r: float = 0.005  # m: STP-BV small radius (kind "stp")
+    R: float = 2.0  # m: STP-BV big radius (kind "stp")
+    progress: bool = False
+    workers: int = 1  # > 1: spq's batched rows also on this many threads (rows "batched N workers")
+
+
+def run(config: Config) -> Output:
+    from datasets import load_object
+    from harness.report.meta import run_metadata
+    from harness.suites.bench import throughput as bench
+    from spq.query import DEFAULT_TOL_ABS, DEFAULT_TOL_REL
+
+    from spq.workers import check_workers
+
+    check_workers(config.workers)
+    if config.kind not in PAIRS:
+        raise ValueError(f"kind must be one of {sorted(PAIRS)}, not {config.kind!r}")
+    cfg = bench.BenchConfig(object_name=config.object, poses=config.poses, seed=config.seed,
+                            translation_range=config.range, repeats=config.repeats, engines=config.engines,
+                            r=config.r, R=config.R, pairs=PAIRS[config.kind], workers=config.workers)
+    table = bench.throughput(cfg, load_object, progress=config.progress)
+    meta = run_metadata(command=f"spq bench {config.kind}", seed=config.seed, poses=config.poses,
+                        translation_range_m=config.range, repeats=config.repeats, spq_tol_abs=DEFAULT_TOL_ABS,
+                        spq_tol_rel=DEFAULT_TOL_REL, coal_gjk_tolerance=1e-8,
+                        **({"stp_r": config.r, "stp_R": config.R} if config.kind == "stp" else {}),
+                        **({"workers": config.workers} if config.workers > 1 else {}))
+    notes = (f"Two copies of {config.object}, {config.poses} pose pairs with uniformly random rotations and "
+             f"translations uniform in ±{config.range} m, seed {config.seed}. Best of {config.repeats} repeats; every "
+             "engine in the same run. per-call: one Python call per query; batched: one compiled call for all "
+             "poses; signed: spq with signed=True (penetration depth on overlaps; coal always runs with signed "
+             "distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side. "
+             + MUJOCO_PIPELINE)
+    if config.workers > 1:
+        notes += (f" batched {config.workers} workers: the batched call split over {config.workers} threads "
+                  "(spq.workers), its results equal one thread's bit for bit; every other row runs on one thread.")
+    if config.kind == "stp":
+        notes += f" STP-BV built from the link's hull vertices with r = {config.r} m, R = {config.R} m."
+    out = Output(meta=meta, tables=[Table(f"bench_{config.kind}", f"Throughput ({config.kind})", table, notes)])
+    out.lines = frame_lines(table[["pair", "engine", "mode", "poses", "queries_per_s", "ratio_to_coal_pch",
+                                   "features", "overlapping"]])
+    return out
