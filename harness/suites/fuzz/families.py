@@ -8,7 +8,7 @@ A shape is a *spec*, a plain dict that JSON holds (so a failing case can be save
 - ``{"kind": "box", "half": [hx, hy, hz]}``, ``{"kind": "sphere", "r"}``, ``{"kind": "capsule", "r", "hl"}``.
 
 A *case* is two specs and N pose pairs (N, 4, 4 each). Poses are placed with the oracle's support
-functions (harness.fuzz.oracle, no spq code): B's origin along a random unit u from A's such that the
+functions (harness.suites.fuzz.oracle, no spq code): B's origin along a random unit u from A's such that the
 separation of the two bodies along u (a lower bound of their signed distance, equal to it when u is the
 optimal normal) is the regime's target: far, near, touching, shallow or deep overlap, or B's origin at
 A's (containment). Every draw comes from one ``np.random.default_rng`` so a case is a pure function of

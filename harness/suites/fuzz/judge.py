@@ -1,7 +1,7 @@
 """Judging one fuzz case: spq (unsigned and signed) and the peers on the same pose pairs, each query
 'ok', 'wrong' or 'failed'.
 
-Cheap judging of every query (harness.fuzz.oracle for the independent side):
+Cheap judging of every query (harness.suites.fuzz.oracle for the independent side):
 
 - spq's certified interval [lower, upper] against the separation bounds at spq's own normal m, from the
   oracle's supports: the separation along m is a lower bound of the signed distance for any m, so an
@@ -35,7 +35,7 @@ from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER, OUT_NORMAL, OUT_STATUS, OUT
 EPS = np.finfo(float).eps
 BAND = 1e-9  # m: |signed distance| within this is contact, either status right
 SLACK_ULPS = 64  # rounding slack, in ulps of the largest coordinate of the pose pair and the shapes
-PEER_TOL = {  # (absolute m, relative) as harness.stability judges them, depth tolerances for overlaps
+PEER_TOL = {  # (absolute m, relative) as harness.suites.stability judges them, depth tolerances for overlaps
     "coal": ((1e-8, 1e-8), (1e-6, 1e-6)),
     "fcl": ((1e-6, 1e-6), (1e-6, 1e-6)),
     "mujoco": ((1e-6, 1e-6), (1e-6, 1e-6)),

@@ -2,10 +2,10 @@
 the peers' meshes it stands for, and the exact reference or the depth oracle for one pose pair.
 
 Nothing here calls spq's kernels: a polytope's support is the best of its vertices (numpy), an STP-BV's
-the brute force of harness.stp_oracle (points and radii only), a superellipsoid's the closed form of
-harness.depth_oracle; a sphere is a point and a capsule a segment, inflated by their radius (a support
+the brute force of harness.references.stp_oracle (points and radii only), a superellipsoid's the closed form of
+harness.references.depth_oracle; a sphere is a point and a capsule a segment, inflated by their radius (a support
 value grows by r, a signed distance drops by r). The reference for one pose pair: the exact Minkowski
-reference (harness.reference) when both sides are polytopes, else the depth oracle's multi-start
+reference (harness.references.minkowski) when both sides are polytopes, else the depth oracle's multi-start
 minimisation of the support of the Minkowski difference, with the radii subtracted.
 """
 
@@ -26,7 +26,7 @@ def box_corners(half) -> np.ndarray:
 @dataclass
 class OracleShape:
     """A spec's support function, in its own frame: a core (vertices, or an STP-BV / superellipsoid
-    body of harness.depth_oracle) swept by a ball of ``radius``."""
+    body of harness.references.depth_oracle) swept by a ball of ``radius``."""
 
     spec: dict
     core: object  # depth_oracle.Body
