@@ -289,8 +289,12 @@ def _plain_pair(A: Shape, B: Shape, tol, rel_tol, max_iter, signed) -> "Pair":
     cache = getattr(_SCRATCH, "pairs", None)
     if cache is None:
         cache = _SCRATCH.pairs = {}
-    key = (id(A), id(B), tol, rel_tol, max_iter, signed)
-    pair = cache.get(key)
+    # the options' types are in the key, so that a hit skips only the checks a miss made on equal input
+    key = (id(A), id(B), tol, rel_tol, max_iter, signed, type(tol), type(rel_tol), type(max_iter), type(signed))
+    try:
+        pair = cache.get(key)
+    except TypeError:  # an unhashable option (an array): Pair says what is wrong with it
+        return Pair(A, B, tol, rel_tol, max_iter, signed)
     if pair is None or pair.A is not A or pair.B is not B:
         pair = Pair(A, B, tol, rel_tol, max_iter, signed)
         if len(cache) >= PLAIN_PAIRS:
