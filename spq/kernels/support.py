@@ -106,7 +106,7 @@ def cell_candidates(vertices: np.ndarray, G: int, chunk: int = 64) -> tuple[np.n
     centre = corners.mean(axis=1, keepdims=True)
     corners = centre + (corners - centre) * (1.0 + CELL_GROWTH)
     eps = CANDIDATE_MARGIN * max(float(np.linalg.norm(V, axis=1).max()), np.finfo(float).tiny)
-    centre_support = (cube_cell_centres(G) @ V.T).argmax(axis=1)
+    centres = cube_cell_centres(G)
     kept = []
     survivors = np.empty(len(V), dtype=np.int64)
     ids = np.empty((chunk, len(V)), dtype=np.int64)
@@ -114,7 +114,9 @@ def cell_candidates(vertices: np.ndarray, G: int, chunk: int = 64) -> tuple[np.n
     for c0 in range(0, len(corners), chunk):
         M = np.ascontiguousarray(corners[c0:c0 + chunk] @ V.T)  # (cells, 4, n): each vertex's value at each corner
         # first against the supports of the corners and the centre, which beat most vertices
-        probes = np.concatenate([M.argmax(axis=2), centre_support[c0:c0 + chunk, None]], axis=1)  # (cells, 5)
+        # (per chunk: all cells' centres at once are a (6 G^2, n) matrix, 6.5 GB for 20,000 vertices)
+        centre_support = (centres[c0:c0 + chunk] @ V.T).argmax(axis=1)
+        probes = np.concatenate([M.argmax(axis=2), centre_support[:, None]], axis=1)  # (cells, 5)
         probes = np.ascontiguousarray(probes, dtype=np.int64)
         _cell_survivors(M, probes, eps, survivors, ids, counts)
         kept += [ids[c, :counts[c]].copy() for c in range(len(M))]
