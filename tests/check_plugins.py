@@ -154,3 +154,39 @@ class _HangPair(SpqPair):
 class HangsOnOverlap(_Mutant):
     """Never answers on an overlapping pose (a stand-in for python-fcl's rare endless loops)."""
     pair_class = _HangPair
+
+
+class _FirstQuerySlow:
+    """Stands in for a JIT's first query (numba compiling spq's kernels on a cold cache, minutes):
+    the first query of the process sleeps COMPILE_S, unless warm_up ran it first."""
+
+    COMPILE_S = 2.0
+    compiled = False
+
+    @classmethod
+    def compile(cls) -> None:
+        if not cls.compiled:
+            import time
+
+            time.sleep(cls.COMPILE_S)
+            cls.compiled = True
+
+
+class _SlowFirstPair(SpqPair):
+    def _query(self, pose_a, pose_b):
+        _FirstQuerySlow.compile()
+        return super()._query(pose_a, pose_b)
+
+    def query_many(self, poses_a, poses_b):
+        _FirstQuerySlow.compile()
+        return super().query_many(poses_a, poses_b)
+
+
+class SlowFirstQuery(_Mutant):
+    """Right answers, but the first query of its process is slow, unless it is warmed up."""
+
+    pair_class = _SlowFirstPair
+
+    def warm_up(self) -> None:
+        super().warm_up()  # spq's own kernels
+        _FirstQuerySlow.compile()

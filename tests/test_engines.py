@@ -357,6 +357,28 @@ def test_isolated_engine_survives_a_hang(monkeypatch):
     np.testing.assert_array_equal(got.distance[~over], truth.distance[~over])
 
 
+
+def test_an_isolated_engine_is_timed_on_its_queries_not_on_its_warm_up(monkeypatch):
+    """A child's first query would compile a JIT's code (spq's kernels: minutes on a cold cache, as on a
+    fresh CI machine with the tests on two processes); the engine's warm_up runs before the time
+    limit applies, so that query is not taken for a hang. The plugin's first query sleeps 2 s unless
+    warmed up; the limit here is 0.5 s. Oracle: spq's own answers in this process."""
+    from harness.engines import isolated as iso
+
+    monkeypatch.setattr(iso, "HANG_BASE_S", 0.5)
+    a, b = spq.Box(0.1, 0.2, 0.3), spq.Sphere(0.2)
+    pa = np.repeat(np.eye(4)[None], 3, axis=0)
+    pb = pa.copy()
+    pb[:, 0, 3] = [1.0, 1.5, 2.0]
+    truth = spq.distances(a, b, pa, pb, signed=True)
+    engine = iso.IsolatedEngine("slow-first", plugin="tests.check_plugins:SlowFirstQuery")
+    try:
+        got = engine.prepare(a, b).query_many(pa, pb)
+    finally:
+        engine.close()
+    assert (got.status == "separated").all()
+    np.testing.assert_array_equal(got.distance, truth.distance)
+
 @pytest.mark.engines
 def test_isolated_engine_gives_the_engines_own_answers():
     """Served from a child process, coal answers bit for bit as in-process (results cross the pipe as

@@ -265,6 +265,10 @@ class Engine(ABC):
     def version(self) -> str:
         """Package name(s) and version(s), for reports."""
 
+    def warm_up(self) -> None:
+        """Compile or load whatever the first query would (a JIT's code); an isolated child runs it
+        before its time limits apply. Nothing by default."""
+
     def close(self) -> None:
         """Release engine-wide resources (a physics client, ...)."""
 

@@ -47,6 +47,7 @@ def _serve(conn, name: str, plugin: str | None) -> None:
         register_plugin(plugin, name)
 
     engine = available_engines([name])[name]
+    engine.warm_up()  # before the info is sent: the parent's time limits apply to queries only
     pair = None
     conn.send((engine.tolerance, bool(getattr(engine, "gives_depth", False)), engine.version()))
     while True:

@@ -54,6 +54,18 @@ class SpqEngine(Engine):
     def prepare(self, a, b) -> SpqPair:
         return SpqPair(a, b, self.tolerance, self.rel_tol, self.signed)
 
+    def warm_up(self) -> None:
+        """One per-call and one batched query, unsigned and signed, between two boxes 1 m apart: numba
+        compiles spq's kernels (or loads them from its cache) here, minutes on a cold cache, rather than
+        in the first query an isolated child is timed on (the kernels take shapes as arrays, so two
+        boxes serve every shape)."""
+        box = spq.Box(0.1, 0.1, 0.1)
+        pa, pb = np.eye(4), np.eye(4)
+        pb[0, 3] = 1.0
+        for signed in (False, True):
+            spq.Pair(box, box, tol=self.tolerance, rel_tol=self.rel_tol, signed=signed).distance(pa, pb)
+            spq.distances(box, box, pa[None], pb[None], tol=self.tolerance, rel_tol=self.rel_tol, signed=signed)
+
     def version(self) -> str:
         import numba
 
