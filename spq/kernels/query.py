@@ -67,6 +67,7 @@ from spq.kernels.signed import (
     HULL_SETTLED,
     add_margins,
     descent_result,
+    settle_by_centres,
     signed_finish,
     status_of,
     supports_as_witnesses,
@@ -1101,6 +1102,7 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
             if outcome == EPA_RESULT:
                 work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CONTINUED
                 out[OUT_ITERATIONS] = it + eit
+                settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out)
                 add_margins(mA, mB, tol_abs, out)
                 return int(out[OUT_STATUS])
     # the hulls' polytope did not hold the origin: the EPA on the bodies from the descent's simplex
@@ -1118,6 +1120,7 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
             out[OUT_STATUS] = FAILED
         supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out)
     out[OUT_ITERATIONS] = it + eit
+    settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out)
     add_margins(mA, mB, tol_abs, out)
     return int(out[OUT_STATUS])
 

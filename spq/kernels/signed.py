@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from spq.kernels.ball_hull_depth import BH_OK, centre_set_bounds, is_ball_hull
 from spq.kernels.epa import EPA_FLAT, EPA_RESULT, bounds_closed, epa
 from spq.kernels.gjk import (
     FAILED,
@@ -147,6 +148,7 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
                 # (a stalled descent between two nearly parallel segments, D flat, may still have
                 # met its bounds: the plane across D bounds sd from below)
                 out[OUT_STATUS] = FAILED
+        settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out)
     else:
         descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
         if status == FAILED and not lower > 0.0:
@@ -157,6 +159,26 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
             out[OUT_LOWER] = min(low, out[OUT_UPPER])
     add_margins(mA, mB, tol_abs, out)
     return int(out[OUT_STATUS])
+
+
+@kernel
+def settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out):
+    """A failed result between two ball hulls (STP-BVs, spheres: cores, A's frame) settled from their
+    sets of centres where those bound sd to the tolerance (spq.kernels.ball_hull_depth); any other
+    result stays as it is."""
+    if out[OUT_STATUS] != FAILED or not (is_ball_hull(kA) and is_ball_hull(kB)):
+        return
+    code, low, up, u0, u1, u2, cuts = centre_set_bounds(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work,
+                                                        iwork)
+    if code != BH_OK:
+        return
+    upper = min(up, out[OUT_UPPER])
+    lower = max(low, out[OUT_LOWER])
+    if not bounds_closed(upper, lower, tol_abs, tol_rel):
+        return
+    out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = u0, u1, u2
+    supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out)
+    set_result(upper, lower, out[OUT_ITERATIONS] + cuts, tol_abs, out)
 
 
 @kernel

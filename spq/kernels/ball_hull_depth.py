@@ -1,0 +1,359 @@
+"""The depth between two ball hulls (STP-BVs, spheres) from their sets of admissible centres.
+
+An STP-BV's support is s(v) = c*(v) + R v for unit v, c* minimising v.c over Q, its admissible
+big-sphere centres (NOTES section 1): h(v) = R - h_Q(-v). A point core (a sphere's) is the case
+Q = {0}, R = 0. So for two such cores, with B at (R, t) in A's frame, D = A - B has
+
+    h_D(u) = S - h_E(u),  S = R_A + R_B,  E = Q_B - Q_A (both in A's frame),
+
+and the depth min over unit u of h_D(u) is S - max over e in E of |e|. Near their least R the sets of
+centres are small (millimetres for a body of a metre) while D is nearly a ball of radius S: there
+the EPA's polytope, inscribed in a round D, closes only as its faces shrink everywhere, and where the
+deepest normal lies on a torus band no sphere cap certifies it (spq.kernels.epa_caps): two STP-BVs
+near their least R, one inside the other, left a gap of 1e-4 m after the EPA's 4072 expansions
+(tests/fixtures/fuzz/stp-min-R-signed-failed-5.json).
+
+E is small and nearly polyhedral (its faces are pieces of spheres of radius R - r), so the bound
+is taken there instead: an outer polytope P of E, cut by the planes u.x <= h_E(u) (each holds E),
+bounds max |e| from above by its farthest vertex, and each cut is made along that vertex's
+direction (Kelley's cutting planes), which also bounds max |e| from below by h_E there. Where the
+farthest point of E is a vertex of E the cuts meet it exactly; on an edge or a face of E they close
+at a rate set by E's curvature, a few hundred cuts at most for 1e-10.
+
+P is kept as its vertices, each the meeting point of three planes (a simple polytope: the cut
+planes come from directions in floating point, so four planes through one point do not happen
+except where a cut passes through vertices already there, which are then kept by loosening the cut).
+Two vertices are joined by an edge when they share two planes. Each plane's offset is loosened by
+the rounding of S - h_D, and each computed vertex x carries a bound E on its distance to the exact
+meeting point x* of its stored planes (Cramer's rule: about eps |h| / det, large where the planes are
+nearly parallel, as they are near the answer). Along a unit d with d = U^T mu (U the planes' normals)
+the error is smaller: d.(x* - x) = -mu.r with r = U x - h the residuals, which is the bound used
+(_error_along) for the farthest vertex's norm, |x*| <= |x| + |mu.r| + E^2 / (2 |x|), and for which
+side of a cut a vertex lies on.
+"""
+
+from __future__ import annotations
+
+import math
+
+from spq.kernels.epa_layout import EPA_ALIVE, EPA_CORNERS, EPA_DEAD, EPA_MAX_VERTICES, EPA_PA, EPA_TMP, EPA_W
+from spq.kernels.gjk import EPA_IOFF, EPA_ROW, minkowski_support
+from spq.kernels.jit import kernel
+from spq.kernels.kinds import POINT, STP
+from spq.kernels.stp_support import F_BIG_R
+
+MAX_CUTS = 600  # planes of P beyond the first six; each adds at most a few vertices
+MAX_VERTICES = EPA_MAX_VERTICES  # rows of the EPA's point blocks reused for P's vertices
+ROUNDING = 1e-14  # relative: rounding of a support value (a few dozen ulps of the bodies' scale)
+EPS = 2.0 ** -52
+CRAMER_ERR = 64.0 * EPS  # relative error bound of a vertex from three planes (Cramer's rule)
+BH_OK, BH_NOT_BALLS, BH_DEGENERATE, BH_BUDGET = 0, 1, 2, 3
+
+
+@kernel(inline="always")
+def is_ball_hull(kind):
+    """Whether a core's support is R v plus a support of a convex set of centres (STP-BV, point)."""
+    return kind == STP or kind == POINT
+
+
+@kernel(inline="always")
+def ball_radius(kind, f):
+    return f[F_BIG_R] if kind == STP else 0.0
+
+
+@kernel
+def _centre_support(kA, fA, iA, kB, fB, iB, R, t, S, u0, u1, u2, warm, work):
+    """(h_E(u) loosened by its rounding, h_E(u)) for u of any length: S |u| - u.(s_A(u) - s_B(-u))."""
+    pa = work[EPA_ROW + EPA_TMP]
+    pb = work[EPA_ROW + EPA_TMP + 1]
+    tmp = work[EPA_ROW + EPA_TMP + 2]
+    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, u0, u1, u2, warm, pa, pb, tmp)
+    nu = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    hd = u0 * (pa[0] - pb[0]) + u1 * (pa[1] - pb[1]) + u2 * (pa[2] - pb[2])
+    scale = abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2])
+    h = S * nu - hd
+    return h + ROUNDING * (S + scale) * nu, h
+
+
+@kernel(inline="always")
+def _plane(work, p):
+    row = EPA_ROW + EPA_W + p
+    return work[row, 0], work[row, 1], work[row, 2], work[row, 3]
+
+
+@kernel(inline="always")
+def _residual(a0, a1, a2, h, y0, y1, y2):
+    """(u.y - h, a bound on the rounding of its evaluation)."""
+    ya = abs(y0) + abs(y1) + abs(y2)
+    return a0 * y0 + a1 * y1 + a2 * y2 - h, 4.0 * EPS * (ya * (abs(a0) + abs(a1) + abs(a2)) + abs(h))
+
+
+@kernel
+def _set_vertex(work, iw, v, p, q, r):
+    """Vertex slot v := the meeting point of planes p, q, r, with a bound on its error; False if they do
+    not meet in one point. Cramer's rule, then two steps of refinement on the residuals: near the
+    answer the planes are nearly parallel (det about 1e-9), where Cramer's point alone misses its own
+    planes by about eps / det."""
+    a0, a1, a2, ha = _plane(work, p)
+    b0, b1, b2, hb = _plane(work, q)
+    c0, c1, c2, hc = _plane(work, r)
+    # the columns of det U^-1: b x c, c x a, a x b
+    x00, x01, x02 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+    x10, x11, x12 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+    x20, x21, x22 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    det = a0 * x00 + a1 * x01 + a2 * x02
+    if not abs(det) > 16.0 * EPS:
+        return False
+    y0 = (ha * x00 + hb * x10 + hc * x20) / det
+    y1 = (ha * x01 + hb * x11 + hc * x21) / det
+    y2 = (ha * x02 + hb * x12 + hc * x22) / det
+    for _ in range(2):
+        ra, _e = _residual(a0, a1, a2, ha, y0, y1, y2)
+        rb, _e = _residual(b0, b1, b2, hb, y0, y1, y2)
+        rc, _e = _residual(c0, c1, c2, hc, y0, y1, y2)
+        y0 -= (ra * x00 + rb * x10 + rc * x20) / det
+        y1 -= (ra * x01 + rb * x11 + rc * x21) / det
+        y2 -= (ra * x02 + rb * x12 + rc * x22) / det
+    ra, ea = _residual(a0, a1, a2, ha, y0, y1, y2)
+    rb, eb = _residual(b0, b1, b2, hb, y0, y1, y2)
+    rc, ec = _residual(c0, c1, c2, hc, y0, y1, y2)
+    n0 = math.sqrt(x00 * x00 + x01 * x01 + x02 * x02) + 4.0 * EPS
+    n1 = math.sqrt(x10 * x10 + x11 * x11 + x12 * x12) + 4.0 * EPS
+    n2 = math.sqrt(x20 * x20 + x21 * x21 + x22 * x22) + 4.0 * EPS
+    # x* - x = -U^-1 r, |U^-1 r| <= sum |r_i| |column i| / |det| (det and the columns to a few eps)
+    err = ((abs(ra) + ea) * n0 + (abs(rb) + eb) * n1 + (abs(rc) + ec) * n2) / (abs(det) - 8.0 * EPS)
+    err *= 1.0 + 16.0 * EPS
+    if not err < math.inf:
+        return False
+    row = EPA_ROW + EPA_PA + v
+    work[row, 0], work[row, 1], work[row, 2], work[row, 3] = y0, y1, y2, err
+    k = EPA_IOFF + EPA_CORNERS + 3 * v
+    iw[k], iw[k + 1], iw[k + 2] = p, q, r
+    iw[EPA_IOFF + EPA_ALIVE + v] = 1
+    return True
+
+
+@kernel
+def _error_along(work, iw, v, d0, d1, d2):
+    """A bound on |d.(x* - x)| for vertex v (x computed, x* exact) and unit d: from the residuals of
+    its planes where d is well inside their span, else its error bound E."""
+    k = EPA_IOFF + EPA_CORNERS + 3 * v
+    a0, a1, a2, ha = _plane(work, iw[k])
+    b0, b1, b2, hb = _plane(work, iw[k + 1])
+    c0, c1, c2, hc = _plane(work, iw[k + 2])
+    x00, x01, x02 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+    x10, x11, x12 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+    x20, x21, x22 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    det = a0 * x00 + a1 * x01 + a2 * x02
+    row = EPA_ROW + EPA_PA + v
+    y0, y1, y2, err = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
+    if not abs(det) > 16.0 * EPS:
+        return err
+    m0 = (x00 * d0 + x01 * d1 + x02 * d2) / det  # mu = U^-T d, refined once on U^T mu - d
+    m1 = (x10 * d0 + x11 * d1 + x12 * d2) / det
+    m2 = (x20 * d0 + x21 * d1 + x22 * d2) / det
+    z0 = m0 * a0 + m1 * b0 + m2 * c0 - d0
+    z1 = m0 * a1 + m1 * b1 + m2 * c1 - d1
+    z2 = m0 * a2 + m1 * b2 + m2 * c2 - d2
+    m0 -= (x00 * z0 + x01 * z1 + x02 * z2) / det
+    m1 -= (x10 * z0 + x11 * z1 + x12 * z2) / det
+    m2 -= (x20 * z0 + x21 * z1 + x22 * z2) / det
+    ra, ea = _residual(a0, a1, a2, ha, y0, y1, y2)
+    rb, eb = _residual(b0, b1, b2, hb, y0, y1, y2)
+    rc, ec = _residual(c0, c1, c2, hc, y0, y1, y2)
+    ms = abs(m0) + abs(m1) + abs(m2)
+    # d.(x* - x) = -mu.r - (U^T mu - d).(x* - x): the second term through the whole error bound
+    z0 = m0 * a0 + m1 * b0 + m2 * c0 - d0
+    z1 = m0 * a1 + m1 * b1 + m2 * c1 - d1
+    z2 = m0 * a2 + m1 * b2 + m2 * c2 - d2
+    miss = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2) + 8.0 * EPS * (ms + 1.0)
+    bound = abs(m0 * ra + m1 * rb + m2 * rc) + abs(m0) * ea + abs(m1) * eb + abs(m2) * ec + 4.0 * EPS * (
+        abs(m0 * ra) + abs(m1 * rb) + abs(m2 * rc)) + miss * err
+    return min(err, bound * (1.0 + 16.0 * EPS))
+
+
+@kernel
+def _norm_bound(work, iw, v):
+    """An upper bound on |x*| for vertex v."""
+    row = EPA_ROW + EPA_PA + v
+    y0, y1, y2, err = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
+    yn = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+    if not yn > err:
+        return yn + err
+    along = _error_along(work, iw, v, y0 / yn, y1 / yn, y2 / yn)
+    return (yn + along + err * err / (2.0 * yn)) * (1.0 + 4.0 * EPS)
+
+
+@kernel(inline="always")
+def _has_plane(iw, v, p):
+    k = EPA_IOFF + EPA_CORNERS + 3 * v
+    return iw[k] == p or iw[k + 1] == p or iw[k + 2] == p
+
+
+@kernel
+def centre_set_bounds(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iw):
+    """Bounds on the signed distance of two ball-hull cores (A's frame, margins not included) from
+    their sets of centres (module docstring).
+
+    Returns (code, lower, upper, u0, u1, u2, cuts): code BH_OK when lower <= sd <= upper hold and met
+    the tolerance (the stopping rule of spq.kernels.epa.bounds_closed), u the unit normal along which
+    sd = lower is reached (its supports are the witness points); otherwise why not. Uses the EPA's
+    scratch rows: call it after the EPA, never during.
+    """
+    if not (is_ball_hull(kA) and is_ball_hull(kB)):
+        return BH_NOT_BALLS, -math.inf, math.inf, 1.0, 0.0, 0.0, 0
+    S = ball_radius(kA, fA) + ball_radius(kB, fB)
+    lower_m = -math.inf  # max |e| >= lower_m
+    b0, b1, b2 = 1.0, 0.0, 0.0
+    # the box of E: planes +-x, +-y, +-z as planes 0..5
+    for axis in range(3):
+        for side in range(2):
+            p = 2 * axis + side
+            s = 1.0 if side == 0 else -1.0
+            u0, u1, u2 = (s if axis == 0 else 0.0), (s if axis == 1 else 0.0), (s if axis == 2 else 0.0)
+            hl, h = _centre_support(kA, fA, iA, kB, fB, iB, R, t, S, u0, u1, u2, warm, work)
+            if h > lower_m:
+                lower_m, b0, b1, b2 = h, u0, u1, u2
+            row = EPA_ROW + EPA_W + p
+            work[row, 0], work[row, 1], work[row, 2], work[row, 3] = u0, u1, u2, hl
+    nv = 0
+    for sx in range(2):
+        for sy in range(2):
+            for sz in range(2):
+                if not _set_vertex(work, iw, nv, sx, 2 + sy, 4 + sz):
+                    return BH_DEGENERATE, -math.inf, math.inf, b0, b1, b2, 0
+                nv += 1
+    n_planes = 6
+    cuts = 0
+    while True:
+        # the farthest vertex of P, its norm with its error bound: max |e| <= upper_m
+        far = -1
+        upper_m = -math.inf
+        for v in range(nv):
+            if iw[EPA_IOFF + EPA_ALIVE + v] == 0:
+                continue
+            row = EPA_ROW + EPA_PA + v
+            y0, y1, y2 = work[row, 0], work[row, 1], work[row, 2]
+            if math.sqrt(y0 * y0 + y1 * y1 + y2 * y2) * (1.0 + 4.0 * EPS) + work[row, 3] <= upper_m:
+                continue  # cannot beat the farthest so far even with its whole error
+            r = _norm_bound(work, iw, v)
+            if r > upper_m:
+                upper_m, far = r, v
+        if far < 0:
+            return BH_DEGENERATE, -math.inf, math.inf, b0, b1, b2, cuts
+        if _closed(upper_m - S, lower_m - S, tol_abs, tol_rel):
+            return BH_OK, lower_m - S, upper_m - S, b0, b1, b2, cuts
+        if cuts >= MAX_CUTS or n_planes >= EPA_MAX_VERTICES:
+            return BH_BUDGET, lower_m - S, upper_m - S, b0, b1, b2, cuts
+        row = EPA_ROW + EPA_PA + far
+        y0, y1, y2 = work[row, 0], work[row, 1], work[row, 2]
+        yn = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+        if not yn > 0.0:
+            return BH_DEGENERATE, lower_m - S, upper_m - S, b0, b1, b2, cuts
+        u0, u1, u2 = y0 / yn, y1 / yn, y2 / yn
+        hl, h = _centre_support(kA, fA, iA, kB, fB, iB, R, t, S, u0, u1, u2, warm, work)
+        if h > lower_m:
+            lower_m, b0, b1, b2 = h, u0, u1, u2
+            if _closed(upper_m - S, lower_m - S, tol_abs, tol_rel):
+                return BH_OK, lower_m - S, upper_m - S, b0, b1, b2, cuts
+        # loosen the cut past every vertex it would pass within that vertex's error of (it stays a
+        # plane holding E), so each vertex is clearly kept or clearly cut off
+        loosened = True
+        while loosened:
+            loosened = False
+            for v in range(nv):
+                if iw[EPA_IOFF + EPA_ALIVE + v] == 0:
+                    continue
+                row = EPA_ROW + EPA_PA + v
+                g = u0 * work[row, 0] + u1 * work[row, 1] + u2 * work[row, 2]
+                slack = ROUNDING * (abs(g) + abs(hl))
+                if abs(g - hl) > 2.0 * work[row, 3] + slack:
+                    continue
+                band = 2.0 * _error_along(work, iw, v, u0, u1, u2) + slack
+                if abs(g - hl) <= band:
+                    hl = g + 2.0 * band
+                    loosened = True
+        if not yn - _error_along(work, iw, far, u0, u1, u2) > hl:
+            # the cut no longer reaches the farthest vertex: P is as tight as this precision allows
+            return BH_BUDGET, lower_m - S, upper_m - S, b0, b1, b2, cuts
+        code, nv = _cut(work, iw, nv, n_planes, u0, u1, u2, hl)
+        if code != BH_OK:
+            return code, lower_m - S, upper_m - S, b0, b1, b2, cuts
+        n_planes += 1
+        cuts += 1
+
+
+@kernel(inline="always")
+def _closed(upper, lower, tol_abs, tol_rel):
+    return upper - lower <= tol_abs + tol_rel * abs(upper)
+
+
+@kernel
+def _cut(work, iw, nv, p, u0, u1, u2, h):
+    """Cut P by plane p := (u, h): drop the vertices beyond it and add one on each edge from a dropped
+    vertex to a kept one. Returns (code, new vertex count bound)."""
+    row = EPA_ROW + EPA_W + p
+    work[row, 0], work[row, 1], work[row, 2], work[row, 3] = u0, u1, u2, h
+    n_dead = 0
+    for v in range(nv):
+        if iw[EPA_IOFF + EPA_ALIVE + v] == 0:
+            continue
+        row = EPA_ROW + EPA_PA + v
+        if u0 * work[row, 0] + u1 * work[row, 1] + u2 * work[row, 2] > h:
+            iw[EPA_IOFF + EPA_DEAD + n_dead] = v
+            n_dead += 1
+            iw[EPA_IOFF + EPA_ALIVE + v] = 2  # to be dropped
+    if n_dead == 0:
+        return BH_DEGENERATE, nv
+    made = 0
+    free = 0  # the next slot to try for a new vertex: first the dropped ones' (after this pass), then nv
+    top = nv
+    for i in range(n_dead):
+        v = iw[EPA_IOFF + EPA_DEAD + i]
+        k = EPA_IOFF + EPA_CORNERS + 3 * v
+        for e in range(3):
+            pq0, pq1 = iw[k + e], iw[k + (e + 1) % 3]
+            found = -1
+            for w in range(nv):
+                if w == v or iw[EPA_IOFF + EPA_ALIVE + w] == 0:
+                    continue
+                if _has_plane(iw, w, pq0) and _has_plane(iw, w, pq1):
+                    if found >= 0:
+                        return BH_DEGENERATE, nv  # an edge with three ends: not a simple polytope
+                    found = w
+            if found < 0:
+                return BH_DEGENERATE, nv
+            if iw[EPA_IOFF + EPA_ALIVE + found] == 2:
+                continue  # both ends dropped: the edge goes
+            if top >= MAX_VERTICES:
+                return BH_BUDGET, nv
+            if not _set_vertex(work, iw, top, pq0, pq1, p):
+                return BH_DEGENERATE, nv
+            iw[EPA_IOFF + EPA_ALIVE + top] = 3  # new: not an end of the edges of this pass
+            top += 1
+            made += 1
+    if made < 3:
+        return BH_DEGENERATE, nv
+    for v in range(top):
+        a = iw[EPA_IOFF + EPA_ALIVE + v]
+        if a == 2:
+            iw[EPA_IOFF + EPA_ALIVE + v] = 0
+        elif a == 3:
+            iw[EPA_IOFF + EPA_ALIVE + v] = 1
+    # compact: move the last live vertices into dropped slots so the scan stays short
+    while top > 0 and iw[EPA_IOFF + EPA_ALIVE + top - 1] == 0:
+        top -= 1
+    while free < top:
+        if iw[EPA_IOFF + EPA_ALIVE + free] == 0:
+            last = top - 1
+            for c in range(4):
+                work[EPA_ROW + EPA_PA + free, c] = work[EPA_ROW + EPA_PA + last, c]
+            for c in range(3):
+                iw[EPA_IOFF + EPA_CORNERS + 3 * free + c] = iw[EPA_IOFF + EPA_CORNERS + 3 * last + c]
+            iw[EPA_IOFF + EPA_ALIVE + free] = 1
+            iw[EPA_IOFF + EPA_ALIVE + last] = 0
+            top -= 1
+            while top > 0 and iw[EPA_IOFF + EPA_ALIVE + top - 1] == 0:
+                top -= 1
+        free += 1
+    return BH_OK, top
