@@ -497,11 +497,11 @@ def _height(work, g, w):
 
 
 @kernel(inline="always")
-def _horizon(work, iw, f0, w, stamp, eps):
-    """Mark dead the faces that see w (w above their plane by more than eps), walking from f0 (which
-    does), list them, and list the horizon: the edges between a dead face and a live one, in the
-    dead faces' counter-clockwise order. Returns (horizon edges, dead faces); the edge count is -1
-    if they do not form one closed loop."""
+def _horizon(work, iw, f0, w, stamp, eps, forced):
+    """Mark dead the faces that see w (w above their plane by more than eps) and face ``forced``
+    (-1: none) if the walk reaches it, walking from f0 (which sees w), list them, and list the
+    horizon: the edges between a dead face and a live one, in the dead faces' counter-clockwise order.
+    Returns (horizon edges, dead faces); the edge count is -1 if they do not form one closed loop."""
     base = EPA_IOFF
     nh = 0
     nd = 1
@@ -524,7 +524,7 @@ def _horizon(work, iw, f0, w, stamp, eps):
         g = _adj(iw, f, e)
         if _stamp(iw, g) == stamp and not _alive(iw, g):
             continue  # both sides dead: an inner edge
-        if _stamp(iw, g) != stamp and _height(work, g, w) > eps:
+        if _stamp(iw, g) != stamp and (g == forced or _height(work, g, w) > eps):
             _set_stamp(iw, g, stamp)
             _set_alive(iw, g, False)
             iw[base + EPA_DEAD + nd] = g
@@ -558,24 +558,27 @@ def _revive(iw, nd):
 
 
 @kernel(inline="always")
-def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
-    """Replace the faces that vertex wv sees (from face f0, which sees it) by a fan from the horizon
-    to wv. Returns (0, new top), or (STOP_*, top) with the polytope left as it was: a broken horizon,
-    no face slots left, or a fan face that would be a sliver or face inwards."""
+def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2, forced):
+    """Replace the faces that vertex wv sees (from face f0, which sees it), and face ``forced`` if
+    next to them (-1: none), by a fan from the horizon to wv. Returns (0, new top, -1), or
+    (STOP_*, top, g) with the polytope left as it was: a broken horizon, no face slots left, or a fan
+    face that would be a sliver (g: the live face across its horizon edge) or face inwards."""
     w = work[_row(wv)]
-    nh, nd = _horizon(work, iw, f0, w, stamp, eps)
+    nh, nd = _horizon(work, iw, f0, w, stamp, eps, forced)
     if nh < 0:
         _revive(iw, nd)
-        return STOP_HORIZON, top
+        return STOP_HORIZON, top, -1
     if iw[EPA_IOFF + EPA_NFREE] + nd + EPA_MAX_FACES - top < nh:
         _revive(iw, nd)
-        return STOP_FACE_SLOTS, top
+        return STOP_FACE_SLOTS, top, -1
     for i in range(nh):  # every fan face must have a well-defined outward plane
         h = EPA_IOFF + EPA_HORIZON + 4 * i
         code, n0, n1, n2, off = _plane_of(work, iw[h], iw[h + 1], wv, c0, c1, c2)
         if code != PLANE_OK:
             _revive(iw, nd)
-            return STOP_FAN_SLIVER if code == PLANE_SLIVER else STOP_FAN_INWARD, top
+            if code == PLANE_SLIVER:
+                return STOP_FAN_SLIVER, top, iw[h + 2]
+            return STOP_FAN_INWARD, top, -1
         row = EPA_ROW + EPA_FAN + i
         work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
     for i in range(nd):  # the dead faces' slots become free
@@ -601,7 +604,7 @@ def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
         prev = fn
     _set_adj(iw, prev, 1, first)
     _set_adj(iw, first, 2, prev)
-    return 0, top
+    return 0, top, -1
 
 
 @kernel(inline="always")
@@ -850,7 +853,14 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
         else:
             clear_sphere(work, nv)
         iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
-        stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
+        stop, top, across = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2, -1)
+        if stop == STOP_FAN_SLIVER:
+            # the support point lies on a horizon edge's line, within rounding of the face across
+            # it (a rounded ridge of D, sharper than floating point resolves): that face goes too,
+            # so the point splits the edge; the fan then bends in by at most that rounding, still
+            # within D (its points are D's) and still around the origin
+            iw[EPA_IOFF + EPA_CLOCK] += 1
+            stop, top, across = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2, across)
         if stop != 0:
             break
         nv += 1
