@@ -92,7 +92,7 @@ def cmd_report(args) -> int:
     from harness.report.assemble import run_report
 
     start = time.perf_counter()
-    paths = run_report(Path(args.out), quick=args.quick, seed=args.seed)
+    paths = run_report(Path(args.out), quick=args.quick, seed=args.seed, workers=args.workers)
     print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - start:.0f} s")
     return 0
 
@@ -268,6 +268,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="small settings (a few minutes; what the report test runs)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=str(DEFAULT_OUT))
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes for the suites that time nothing, run side by side before the benchmarks, "
+                        "which run one at a time (default: every core; 1: all in this process, in order)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("crosscheck", help="every engine on distance-controlled poses vs the exact reference")

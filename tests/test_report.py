@@ -96,3 +96,27 @@ def test_the_robot_section_agrees_with_coal_and_shows_no_auto_gradient_jump(repo
     continuity = pd.read_csv(report_dir / "robot_continuity.csv")
     auto = continuity[continuity.policy == "auto"]
     assert (auto.gradient_jumps_same_pair == 0).all() and (auto.largest_residual_after_bisection < 0.5).all()
+
+
+def test_the_suites_side_by_side_write_what_one_process_writes(tmp_path):
+    """The suites that time nothing run on a pool of processes (spq report --workers): same tables as
+    a serial run, the time columns aside."""
+    from harness.report.assemble import run_report
+
+    only = ["continuity", "depth", "stability"]
+    serial, pooled = tmp_path / "serial", tmp_path / "pooled"
+    run_report(serial, quick=True, only=only, workers=1)
+    run_report(pooled, quick=True, only=only, workers=2)
+    tables = sorted(serial.glob("*.csv"))
+    assert len(tables) >= 3
+    for path in tables:
+        a, b = pd.read_csv(path), pd.read_csv(pooled / path.name)
+        timing = [c for c in a.columns if c == "seconds" or c.endswith(("_s", "_ms", "_us"))]
+        pd.testing.assert_frame_equal(a.drop(columns=timing), b.drop(columns=timing))
+
+
+def test_the_report_refuses_no_workers(tmp_path):
+    from harness.report.assemble import run_report
+
+    with pytest.raises(ValueError, match="workers"):
+        run_report(tmp_path, quick=True, only=["continuity"], workers=0)

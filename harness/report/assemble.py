@@ -1,12 +1,18 @@
 """`spq report`: run the suites, then assemble index.html and REPORT.md from what they wrote.
 
-Each suite of harness/suites runs with the report's config (in this process), its output is written
-into the output folder, and its section is built from the files written, with readings computed
-from the numbers. ``quick`` shrinks every suite so that the whole report takes a few minutes.
+Each suite of harness/suites runs with the report's config, its output is written into the output
+folder, and its section is built from the files written, with readings computed from the numbers.
+``quick`` shrinks every suite so that the whole report takes a few minutes.
+
+The suites that time nothing (accuracy, stability, pictures: ``timed=False``) run first, side by side
+on ``workers`` processes, longest first; then the benchmarks run one at a time in this process, on an
+otherwise idle machine, so that their figures mean what a serial run's do. Each suite's content is
+the same either way (its seed fixes it); only the run's metadata (seconds, peak memory) differ.
 """
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +30,7 @@ class Suite:
     module: str  # the suite's module in harness.suites (run(config) -> Output)
     config: Callable[[bool, int, Path], object]  # (quick, seed, output folder) -> the suite's config
     section: Callable[[Path], Section]
+    timed: bool = True  # whether it measures speed (then it runs alone); False: it may share the machine
 
 
 CHECK_BASELINE = Path(__file__).resolve().parent.parent / ".ci" / "check-baseline.json"
@@ -512,9 +519,9 @@ def _config(module: str, **fixed) -> Callable[[bool, int, Path], object]:
 
 SUITES = [
     Suite("pictures", "pictures", _config("pictures", quick={True: True, False: False}, robot=report_robot),
-          pictures_section),
+          pictures_section, timed=False),
     Suite("crosscheck", "crosscheck", _config("crosscheck", per_bucket={True: 26, False: None},
-                                              agreement_poses={True: 20000, False: None}), crosscheck_section),
+                                              agreement_poses={True: 20000, False: None}), crosscheck_section, timed=False),
     Suite("bench pch", "bench", _config("bench", kind="pch", poses={True: 2000, False: None},
                                         repeats={True: 1, False: None}),
           lambda out: bench_section(out, "pch", "Throughput, PCH-PCH (every engine)")),
@@ -525,14 +532,15 @@ SUITES = [
                                               repeats={True: 1, False: None}), support_section),
     Suite("table1", "table1", _config("table1", poses={True: 2000, False: None}, repeats={True: 1, False: None}),
           table1_section),
-    Suite("continuity", "continuity", _config("continuity", quick={True: True, False: False}), continuity_section),
+    Suite("continuity", "continuity", _config("continuity", quick={True: True, False: False}), continuity_section,
+          timed=False),
     Suite("tradeoff", "tradeoff", _config("tradeoff", quick={True: True, False: False}), tradeoff_section),
     Suite("rtradeoff", "rtradeoff", _config("rtradeoff", quick={True: True, False: False}), rtradeoff_section),
     # the full stability suite judges 10,000 generated cases: on two processes (its time is about halved)
     Suite("stability", "stability", _config("stability", quick={True: True, False: False}, workers={True: 1, False: 2}),
-          stability_section),
+          stability_section, timed=False),
     Suite("depth", "depth", _config("depth", per_bucket={True: 3, False: 50}, stp_per_bucket={True: 1, False: None}),
-          depth_section),
+          depth_section, timed=False),
     Suite("bench robot", "robot", _config("robot", robot=report_robot, configs={True: 40, False: None},
                                           steps={True: 200, False: None}, repeats={True: 1, False: None},
                                           engine_configs={True: 10, False: None}), robot_section),
@@ -548,36 +556,78 @@ SUITES = [
           control_section),
     # a small campaign (the shrinking of failing cases is spq fuzz's, which writes into tests/)
     Suite("fuzz", "fuzz", _config("fuzz", queries={True: 4000, False: 200_000}, poses={True: 200, False: 2000},
-                                  shrink=False), fuzz_section),
+                                  shrink=False), fuzz_section, timed=False),
     Suite("check", "check", check_config, check_section),
 ]
 
 
-def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = None) -> list[Path]:
+def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = None,
+               workers: int | None = None) -> list[Path]:
     """Run the suites into out (quick: small settings) and render the report; each suite's terminal
-    lines are printed as it finishes (a regression found by the check is shown in its section)."""
-    import importlib
-
+    lines are printed as it finishes (a regression found by the check is shown in its section).
+    workers: processes for the suites that time nothing (module docstring); None: every core."""
     from harness.report.verdict import verdict
-    from harness.suites import write_output
 
+    workers = os.cpu_count() or 1 if workers is None else int(workers)
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    chosen = [i for i, suite in enumerate(SUITES) if not only or suite.name in only]
     start = time.perf_counter()
-    sections, timings = [], {}
-    for suite in SUITES:
-        if only and suite.name not in only:
-            continue
-        t0 = time.perf_counter()
-        output = importlib.import_module(f"harness.suites.{suite.module}").run(suite.config(quick, seed, out))
-        write_output(output, out)
-        print(f"\n== {suite.name} ==", *output.lines, sep="\n")
-        timings[suite.name] = round(time.perf_counter() - t0, 1)
-        sections.append(suite.section(out))
+    timings, memory = {}, {}
+
+    def report(i, lines, seconds, peak_mb):
+        name = SUITES[i].name
+        timings[name], memory[name] = seconds, peak_mb
+        done = len(timings)
+        print(f"\n== {name} == ({done}/{len(chosen)} suites, {time.perf_counter() - start:.0f} s)", *lines, sep="\n",
+              flush=True)
+
+    shared = [i for i in chosen if not SUITES[i].timed]
+    if workers > 1 and len(shared) > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        # longest first (their last full run's order): the pool's makespan is then near its least
+        shared.sort(key=lambda i: SHARED_ORDER.index(SUITES[i].name) if SUITES[i].name in SHARED_ORDER else 99)
+        with ProcessPoolExecutor(min(workers, len(shared)), mp_context=mp.get_context("spawn")) as pool:
+            futures = {pool.submit(_run_suite, i, quick, seed, out): i for i in shared}
+            for future in as_completed(futures):
+                report(futures[future], *future.result())
+        serial = [i for i in chosen if SUITES[i].timed]
+    else:
+        serial = chosen
+    for i in serial:
+        report(i, *_run_suite(i, quick, seed, out))
+    sections = []
+    for i in chosen:
+        sections.append(SUITES[i].section(out))
         for chart in sections[-1].charts:
             chart.look = chart.look or LOOK.get(chart.path.name, "")
-    meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick,
-                        suite_seconds=timings, seconds=round(time.perf_counter() - start, 1))
+    meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick, workers=workers,
+                        suite_seconds=timings, suite_peak_memory_mb=memory,
+                        seconds=round(time.perf_counter() - start, 1))
     intro = ["spq against python-fcl, coal, pybullet, MuJoCo, pinocchio and an exact reference, on "
              "polyhedral hulls (PCH), sphere-torus-patch bounding volumes (STP-BV) and superellipsoids (CSE); every "
              "figure measured in this run, CSVs beside this page. "
              + ("Quick run: small settings, noisier figures." if quick else "Full run.")]
     return render(out, "spq report", intro, sections, meta, lead=verdict(out))
+
+
+# the suites that share the machine, longest first in a full run (seconds on 2 cores, 2026-11)
+SHARED_ORDER = ["pictures", "crosscheck", "depth", "stability", "fuzz", "continuity"]
+
+
+def _run_suite(index: int, quick: bool, seed: int, out: Path) -> tuple[list[str], float, float]:
+    """Run SUITES[index] and write its output into out: (its terminal lines, seconds, this process's
+    peak memory so far in MB). A top-level function, so that a pool's worker can run it."""
+    import importlib
+    import resource
+
+    from harness.suites import write_output
+
+    suite = SUITES[index]
+    t0 = time.perf_counter()
+    output = importlib.import_module(f"harness.suites.{suite.module}").run(suite.config(quick, seed, out))
+    write_output(output, out)
+    peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # kB on Linux
+    return list(output.lines), round(time.perf_counter() - t0, 1), round(peak_kb / 1024.0, 0)
