@@ -428,6 +428,25 @@ def _plane_of(work, a, b, c, c0, c1, c2):
 
 
 @kernel
+def _sliver_plane(work, g, a, b, c, c0, c1, c2):
+    """A plane for the sliver fan face (a, b, c) whose corner c lies on the line of its horizon edge
+    (a, b), within rounding of live face g across that edge (a rounded ridge of D sharper than
+    floating point resolves): g's normal, with the least offset of the three corners along it. Every
+    point of the triangle lies on or beyond that plane, so its offset still bounds their distance from
+    the origin, and a point beyond the true face lies beyond it too (module docstring). The triangle
+    is a face of the convex hull (c lies on g's inner side, bending the hull as convexity does), where
+    taking g in too would dent it. PLANE_INWARD if the interior point is not inside it."""
+    row = EPA_ROW + EPA_PLANES + g
+    n0, n1, n2 = work[row, 0], work[row, 1], work[row, 2]
+    off = min(n0 * work[_row(a), 0] + n1 * work[_row(a), 1] + n2 * work[_row(a), 2],
+              n0 * work[_row(b), 0] + n1 * work[_row(b), 1] + n2 * work[_row(b), 2],
+              n0 * work[_row(c), 0] + n1 * work[_row(c), 1] + n2 * work[_row(c), 2])
+    if not (n0 * c0 + n1 * c1 + n2 * c2 < off):
+        return PLANE_INWARD, 0.0, 0.0, 0.0, 0.0
+    return PLANE_OK, n0, n1, n2, off
+
+
+@kernel
 def _new_face(work, iw, top, a, b, c, n0, n1, n2, off):
     """A face slot (a free one if any, else slot ``top``) with corners a, b, c and its plane.
     Returns (face, new top)."""
@@ -497,11 +516,11 @@ def _height(work, g, w):
 
 
 @kernel(inline="always")
-def _horizon(work, iw, f0, w, stamp, eps, forced):
-    """Mark dead the faces that see w (w above their plane by more than eps) and face ``forced``
-    (-1: none) if the walk reaches it, walking from f0 (which sees w), list them, and list the
-    horizon: the edges between a dead face and a live one, in the dead faces' counter-clockwise order.
-    Returns (horizon edges, dead faces); the edge count is -1 if they do not form one closed loop."""
+def _horizon(work, iw, f0, w, stamp, eps):
+    """Mark dead the faces that see w (w above their plane by more than eps), walking from f0 (which
+    does), list them, and list the horizon: the edges between a dead face and a live one, in the
+    dead faces' counter-clockwise order. Returns (horizon edges, dead faces); the edge count is -1
+    if they do not form one closed loop."""
     base = EPA_IOFF
     nh = 0
     nd = 1
@@ -524,7 +543,7 @@ def _horizon(work, iw, f0, w, stamp, eps, forced):
         g = _adj(iw, f, e)
         if _stamp(iw, g) == stamp and not _alive(iw, g):
             continue  # both sides dead: an inner edge
-        if _stamp(iw, g) != stamp and (g == forced or _height(work, g, w) > eps):
+        if _stamp(iw, g) != stamp and _height(work, g, w) > eps:
             _set_stamp(iw, g, stamp)
             _set_alive(iw, g, False)
             iw[base + EPA_DEAD + nd] = g
@@ -558,27 +577,26 @@ def _revive(iw, nd):
 
 
 @kernel(inline="always")
-def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2, forced):
-    """Replace the faces that vertex wv sees (from face f0, which sees it), and face ``forced`` if
-    next to them (-1: none), by a fan from the horizon to wv. Returns (0, new top, -1), or
-    (STOP_*, top, g) with the polytope left as it was: a broken horizon, no face slots left, or a fan
-    face that would be a sliver (g: the live face across its horizon edge) or face inwards."""
+def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
+    """Replace the faces that vertex wv sees (from face f0, which sees it) by a fan from the horizon
+    to wv. Returns (0, new top), or (STOP_*, top) with the polytope left as it was: a broken horizon,
+    no face slots left, or a fan face that would be a sliver or face inwards."""
     w = work[_row(wv)]
-    nh, nd = _horizon(work, iw, f0, w, stamp, eps, forced)
+    nh, nd = _horizon(work, iw, f0, w, stamp, eps)
     if nh < 0:
         _revive(iw, nd)
-        return STOP_HORIZON, top, -1
+        return STOP_HORIZON, top
     if iw[EPA_IOFF + EPA_NFREE] + nd + EPA_MAX_FACES - top < nh:
         _revive(iw, nd)
-        return STOP_FACE_SLOTS, top, -1
+        return STOP_FACE_SLOTS, top
     for i in range(nh):  # every fan face must have a well-defined outward plane
         h = EPA_IOFF + EPA_HORIZON + 4 * i
         code, n0, n1, n2, off = _plane_of(work, iw[h], iw[h + 1], wv, c0, c1, c2)
+        if code == PLANE_SLIVER:
+            code, n0, n1, n2, off = _sliver_plane(work, iw[h + 2], iw[h], iw[h + 1], wv, c0, c1, c2)
         if code != PLANE_OK:
             _revive(iw, nd)
-            if code == PLANE_SLIVER:
-                return STOP_FAN_SLIVER, top, iw[h + 2]
-            return STOP_FAN_INWARD, top, -1
+            return STOP_FAN_SLIVER if code == PLANE_SLIVER else STOP_FAN_INWARD, top
         row = EPA_ROW + EPA_FAN + i
         work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
     for i in range(nd):  # the dead faces' slots become free
@@ -604,7 +622,7 @@ def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2, forced):
         prev = fn
     _set_adj(iw, prev, 1, first)
     _set_adj(iw, first, 2, prev)
-    return 0, top, -1
+    return 0, top
 
 
 @kernel(inline="always")
@@ -853,14 +871,7 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
         else:
             clear_sphere(work, nv)
         iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
-        stop, top, across = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2, -1)
-        if stop == STOP_FAN_SLIVER:
-            # the support point lies on a horizon edge's line, within rounding of the face across
-            # it (a rounded ridge of D, sharper than floating point resolves): that face goes too,
-            # so the point splits the edge; the fan then bends in by at most that rounding, still
-            # within D (its points are D's) and still around the origin
-            iw[EPA_IOFF + EPA_CLOCK] += 1
-            stop, top, across = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2, across)
+        stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
         if stop != 0:
             break
         nv += 1
