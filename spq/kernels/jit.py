@@ -30,7 +30,7 @@ process from before it, makes every cached kernel stale and compiled anew.
 import hashlib
 from pathlib import Path
 
-from numba import njit
+from numba import njit, types
 
 KERNELS_DIR = Path(__file__).resolve().parent
 
@@ -92,6 +92,20 @@ def _into_hot_kernels(expr, caller_ir, callee_ir) -> bool:
     return getattr(caller_ir.func_id.func, _HOT, False)
 
 
+def _one_version_per_type(dispatcher):
+    """A kernel called from another with a constant argument is compiled for that constant's literal
+    type (numba's default), so a kernel called with kinds 0, 1 and 2 was compiled three times over,
+    each copy with every kernel it calls: here the callee sees the argument's plain type."""
+    typed_for = dispatcher.get_call_template
+
+    def get_call_template(args, kws):
+        return typed_for(tuple(types.unliteral(a) for a in args),
+                         {k: types.unliteral(v) for k, v in kws.items()})
+
+    dispatcher.get_call_template = get_call_template
+    return dispatcher
+
+
 def kernel(fn=None, *, allocates: bool = False, hot: bool = False, **options):
     """``numba.njit`` with the project's options; use as ``@kernel``, ``@kernel(inline="always")``,
     ``@kernel(inline="hot")`` (inlined only into hot entry points), ``@kernel(hot=True)`` (an entry
@@ -103,6 +117,6 @@ def kernel(fn=None, *, allocates: bool = False, hot: bool = False, **options):
     def compile_(f):
         if hot:
             setattr(f, _HOT, True)
-        return njit(**opts)(f)
+        return _one_version_per_type(njit(**opts)(f))
 
     return compile_ if fn is None else compile_(fn)
