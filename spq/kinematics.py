@@ -215,7 +215,7 @@ class RobotModel:
         q = self.check_configuration(q)
         base = np.eye(4) if base is None else as_pose(base, "base")
         out = np.empty((self.nlinks, 4, 4))
-        forward_kinematics(*self._kernel_arrays(), q, base, out)
+        forward_kinematics(*self.kernel_chain(), q, base, out)
         return out
 
     def link_poses_many(self, qs, base=None) -> np.ndarray:
@@ -232,10 +232,12 @@ class RobotModel:
             elif len(bases) != len(qs):
                 raise ValueError(f"base must be one pose or one per configuration ({len(qs)}); got {len(bases)}")
         out = np.empty((len(qs), self.nlinks, 4, 4))
-        forward_kinematics_many(*self._kernel_arrays(), np.ascontiguousarray(qs), np.ascontiguousarray(bases), out)
+        forward_kinematics_many(*self.kernel_chain(), np.ascontiguousarray(qs), np.ascontiguousarray(bases), out)
         return out
 
-    def _kernel_arrays(self):
+    def kernel_chain(self) -> tuple:
+        """(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset): the tree as
+        the compiled kernels take it (spq.kernels.kinematics, spq.kernels.scene)."""
         return (
             self.parent, self.joint_type, self.joint_origin, self.joint_axis,
             self.q_index, self.q_multiplier, self.q_offset,

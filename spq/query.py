@@ -208,7 +208,7 @@ class Pair:
         """Distance between A at pose_a and B at pose_b (4x4 world poses)."""
         out = np.empty(OUT_SIZE)
         code = kb.query_one(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats,
-                            _as_matrix(pose_a), _as_matrix(pose_b), out, *_thread_scratch())
+                            _as_matrix(pose_a), _as_matrix(pose_b), out, _thread_scratch())
         if code:
             _raise_pose_error(code)
         return DistanceResult(out)
@@ -218,7 +218,7 @@ class Pair:
         this pair was asked before; the warm start is left cleared."""
         out = np.empty((1, OUT_SIZE))
         code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats,
-                              _as_matrix(pose_a)[None], _as_matrix(pose_b)[None], False, out, *_thread_scratch())
+                              _as_matrix(pose_a)[None], _as_matrix(pose_b)[None], False, out, _thread_scratch())
         if code >= 0:
             _raise_pose_error(code % 100)
         return DistanceResult(out[0])
@@ -238,7 +238,7 @@ class Pair:
         bounds = [(0, n)] if coherent else chunk_bounds(n, workers, MIN_PAIR_QUERIES)
         if len(bounds) == 1:
             code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats, pa, pb,
-                                  bool(coherent), out, *kb.query_scratch())
+                                  bool(coherent), out, kb.query_scratch())
             if code >= 0:
                 _raise_pose_error(code % 100, code // 100)
             return BatchDistances(out)
@@ -247,7 +247,7 @@ class Pair:
             ints, floats = self._ints.copy(), self._floats.copy()
             code = kb.query_batch(self._fa, self._ia, self._fb, self._ib, ints, floats,
                                   pa[start:stop] if len(pa) > 1 else pa, pb[start:stop] if len(pb) > 1 else pb,
-                                  False, out[start:stop], *kb.query_scratch())
+                                  False, out[start:stop], kb.query_scratch())
             return code, ints, floats
 
         results = map_chunks(chunk, bounds, workers)

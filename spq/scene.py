@@ -568,15 +568,14 @@ class Scene:
         """One compiled call over qs with the given per-pair warm-start state, into out (and the rows
         ∂d/∂q into jac, when given); scratch: (links, slot poses, query scratch, joint axes), one set per
         thread."""
-        m = self.model
-        args = (m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier, m.q_offset, self.base,
-                qs, self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin, self._slot_frange,
-                self._slot_irange, self._fpool, self._ipool, self._slot_centre, self._slot_radius, self._pair_slots,
-                pair_ints, pair_floats, bool(coherent), float(prune), scratch[0], scratch[1], *scratch[2], out)
+        slots = (self._slot_link, self._slot_offset, self._slot_kind, self._slot_margin, self._slot_frange,
+                 self._slot_irange, self._fpool, self._ipool, self._slot_centre, self._slot_radius)
+        args = (self.model.kernel_chain(), self.base, qs, slots, (self._pair_slots, pair_ints, pair_floats),
+                bool(coherent), float(prune), scratch[0], scratch[1], scratch[2], out)
         if jac is None:
             kscene.scene_distances(*args)
         else:
-            kjac.scene_distances_jacobians(*args, self.floating_base, self._pair_stop, bool(signed), scratch[3], jac)
+            kjac.scene_distances_jacobians(*args, (self.floating_base, self._pair_stop, bool(signed), scratch[3], jac))
 
     def _link_scratch(self) -> np.ndarray:
         """(nlinks + 1, 4, 4) scratch for the link poses; the last row, the world's pose, is the identity
@@ -622,8 +621,7 @@ class Scene:
                 raise ValueError(f"frame {k}: link must be an index from 0 to {m.nlinks - 1}; got {link}")
             rotations[k] = links[link, :3, :3]
             points[k] = rotations[k] @ np.asarray(local, dtype=np.float64) + links[link, :3, 3]
-            kjac.point_jacobian(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
-                                m.q_offset, self.base, self.floating_base, q, link, points[k], links, self._axes,
+            kjac.point_jacobian(m.kernel_chain(), self.base, self.floating_base, q, link, points[k], links, self._axes,
                                 jac[k])
         return points, rotations, jac
 
@@ -644,9 +642,8 @@ class Scene:
             raise ValueError(f"point must be a finite (3,) world point (m); got {point!r}")
         m = self.model
         out = np.empty((6, self.nv))
-        kjac.point_jacobian(m.parent, m.joint_type, m.joint_origin, m.joint_axis, m.q_index, m.q_multiplier,
-                            m.q_offset, self.base, self.floating_base, q, int(link), point, self._links, self._axes,
-                            out)
+        kjac.point_jacobian(m.kernel_chain(), self.base, self.floating_base, q, int(link), point, self._links,
+                            self._axes, out)
         return out
 
     def _check_prune(self, prune) -> float:

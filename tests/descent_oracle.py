@@ -16,6 +16,6 @@ def plain_descent(a, b, pose_a, pose_b, tol=1e-12):
     kb.relative_pose(pose_a, pose_b, R, t)
     work = np.empty((gjk.WORK_ROWS, 4))
     warm = np.zeros(gjk.WARM_SIZE, dtype=np.int64)
-    st, k, v0, v1, v2, vv, lower, it = gjk.descend(ka.kind, ka.fdata, ka.idata, kb_.kind, kb_.fdata, kb_.idata, R, t,
-                                                   tol, tol, 2000, np.zeros(3), warm, work)
+    pair = (ka.kind, ka.margin, ka.fdata, ka.idata, kb_.kind, kb_.margin, kb_.fdata, kb_.idata, R, t)
+    st, k, v0, v1, v2, vv, lower, it = gjk.descend(pair, (tol, tol, 2000), np.zeros(3), warm, work)
     return st, np.sqrt(vv) - ka.margin - kb_.margin, lower - ka.margin - kb_.margin

@@ -26,8 +26,8 @@ def _bounds(A, B, pose_a, pose_b):
     work = np.zeros((WORK_ROWS, 4))
     iwork = np.zeros(IWORK_SIZE, dtype=np.int64)
     warm = np.zeros(2, dtype=np.int64)
-    code, lo, up, u0, u1, u2, _ = centre_set_bounds(ka.kind, ka.fdata, ka.idata, kb.kind, kb.fdata, kb.idata, R, t,
-                                                    TOL, REL, warm, work, iwork)
+    pair = (ka.kind, ka.margin, ka.fdata, ka.idata, kb.kind, kb.margin, kb.fdata, kb.idata, R, t)
+    code, lo, up, u0, u1, u2, _ = centre_set_bounds(pair, TOL, REL, warm, work, iwork)
     return code, lo - ka.margin - kb.margin, up - ka.margin - kb.margin, np.array([u0, u1, u2])
 
 

@@ -49,6 +49,7 @@ def test_coherent_ball_finish_settles_a_smooth_motion_within_the_plain_descents_
     R, t, work = np.empty((3, 3)), np.empty(3), np.empty((gjk.WORK_ROWS, 4))
     iwork = np.empty(gjk.IWORK_SIZE, dtype=np.int64)
     out = np.empty(gjk.OUT_SIZE)
+    pair = (ka.kind, ka.margin, ka.fdata, ka.idata, kb_.kind, kb_.margin, kb_.fdata, kb_.idata, R, t)
     first_torus = stp.n_small + stp.n_big
     stp_slot = 0 if stp_first else 1
     taken = tori = moves = separated = 0
@@ -58,8 +59,7 @@ def test_coherent_ball_finish_settles_a_smooth_motion_within_the_plain_descents_
         if i > 0:
             trial_warm, trial_dir = warm.copy(), direction.copy()
             out[:] = np.nan
-            used = coherent_ball_finish(ka.kind, ka.margin, ka.fdata, ka.idata, kb_.kind, kb_.margin, kb_.fdata,
-                                        kb_.idata, R, t, TOL_ABS, TOL_REL, MAX_ITER, trial_dir, trial_warm, work, out)
+            used = coherent_ball_finish(pair, (TOL_ABS, TOL_REL, MAX_ITER), trial_dir, trial_warm, work, out)
             if used >= 0:
                 taken += 1
                 st, upper, lower = plain_descent(a, b, pose_a, pose_b)
@@ -74,8 +74,7 @@ def test_coherent_ball_finish_settles_a_smooth_motion_within_the_plain_descents_
                 moves += trial_warm[stp_slot] != warm[stp_slot]
             else:
                 assert np.isnan(out).all() and np.array_equal(trial_warm, warm)  # nothing written
-        gjk_query(ka.kind, ka.margin, ka.fdata, ka.idata, kb_.kind, kb_.margin, kb_.fdata, kb_.idata, R, t, TOL_ABS,
-                  TOL_REL, MAX_ITER, direction, np.zeros(6), warm, iwork, work, out, False)
+        gjk_query(pair, (TOL_ABS, TOL_REL, MAX_ITER), direction, np.zeros(6), warm, iwork, work, out, False)
         separated += out[gjk.OUT_STATUS] == gjk.SEPARATED
     # not vacuous: the fast path settles most steps, some on tori, some after a patch change
     assert separated >= 0.9 * len(moving), separated

@@ -108,3 +108,38 @@ def test_a_cached_kernel_is_compiled_anew_when_a_kernel_it_inlines_changes(tmp_p
     assert run(1.0) == (2.0, 1)  # from the cache
     assert run(5.0) == (10.0, 0)  # a.py changed: compiled anew, not the stale 2.0
     assert run(5.0) == (10.0, 1)
+
+
+@kernel(cache=False)
+def _by_kind(kind, x):
+    return x + kind
+
+
+@kernel(cache=False)
+def _calls_with_constants(x):
+    return _by_kind(0, x) + _by_kind(1, x) + _by_kind(2, x)
+
+
+def test_a_kernel_called_with_constants_is_compiled_once_for_their_plain_type():
+    """numba's default compiles a callee once per literal value it is called with (three copies of
+    _by_kind here, each with everything it calls); the project's decorator compiles one."""
+    assert _calls_with_constants(1.0) == 6.0
+    assert len(_by_kind.signatures) == 1, _by_kind.signatures
+
+
+def test_no_kernel_takes_more_than_twelve_parameters():
+    """A kernel's shapes, pose, tolerances and scratch travel as tuples (spq.kernels' docstring), so a
+    signature stays readable; the oracle is the source, parsed."""
+    import ast
+    from pathlib import Path
+
+    import spq.kernels
+
+    folder = Path(spq.kernels.__file__).parent
+    long = []
+    for path in sorted(folder.glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef) and len(node.args.args) > 12:
+                long.append(f"{path.name}:{node.name} ({len(node.args.args)})")
+    assert not long, long
+    assert len(list(folder.glob("*.py"))) > 20  # not vacuous: the kernels were found

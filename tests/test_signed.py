@@ -365,8 +365,8 @@ def test_patch_rounds_skipped_where_the_hulls_overlap_could_not_have_closed():
             m = TA[:3, :3].T @ signed_auto[i, p, OUT_NORMAL:OUT_NORMAL + 3]
             r = (fA if ints[I_KIND_A] == STP else fB)[0]
             reach = _small_balls_reach(hulls[i, p], r + floats[F_MARGIN_A] + floats[F_MARGIN_B], 1e-10, 1e-10)
-            verdict = _certify_overlap(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B],
-                                       fB, iB, R, t, m[0], m[1], m[2], 1e-10, 1e-10,
+            verdict = _certify_overlap((ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B],
+                                        fB, iB, R, t), m[0], m[1], m[2], 1e-10, 1e-10,
                                        np.zeros(WARM_SIZE, dtype=np.int64), work[PROBE_ROW:PROBE_END],
                                        np.zeros(WARM_SIZE, dtype=np.int64), np.zeros(OUT_SIZE))
             if not reach:

@@ -62,12 +62,13 @@ def ball_radius(kind, f):
 
 
 @kernel
-def _centre_support(kA, fA, iA, kB, fB, iB, R, t, S, u0, u1, u2, warm, work):
+def _centre_support(pair, S, u0, u1, u2, warm, work):
     """(h_E(u) loosened by its rounding, h_E(u)) for u of any length: S |u| - u.(s_A(u) - s_B(-u))."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     pa = work[EPA_ROW + EPA_TMP]
     pb = work[EPA_ROW + EPA_TMP + 1]
     tmp = work[EPA_ROW + EPA_TMP + 2]
-    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, u0, u1, u2, warm, pa, pb, tmp)
+    minkowski_support(pair, u0, u1, u2, warm, pa, pb, tmp)
     nu = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
     hd = u0 * (pa[0] - pb[0]) + u1 * (pa[1] - pb[1]) + u2 * (pa[2] - pb[2])
     scale = abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2])
@@ -191,7 +192,7 @@ def _has_plane(iw, v, p):
 
 
 @kernel
-def centre_set_bounds(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iw):
+def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
     """Bounds on the signed distance of two ball-hull cores (A's frame, margins not included) from
     their sets of centres (module docstring).
 
@@ -200,6 +201,7 @@ def centre_set_bounds(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work
     sd = lower is reached (its supports are the witness points); otherwise why not. Uses the EPA's
     scratch rows: call it after the EPA, never during.
     """
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     if not (is_ball_hull(kA) and is_ball_hull(kB)):
         return BH_NOT_BALLS, -math.inf, math.inf, 1.0, 0.0, 0.0, 0
     S = ball_radius(kA, fA) + ball_radius(kB, fB)
@@ -211,7 +213,7 @@ def centre_set_bounds(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work
             p = 2 * axis + side
             s = 1.0 if side == 0 else -1.0
             u0, u1, u2 = (s if axis == 0 else 0.0), (s if axis == 1 else 0.0), (s if axis == 2 else 0.0)
-            hl, h = _centre_support(kA, fA, iA, kB, fB, iB, R, t, S, u0, u1, u2, warm, work)
+            hl, h = _centre_support(pair, S, u0, u1, u2, warm, work)
             if h > lower_m:
                 lower_m, b0, b1, b2 = h, u0, u1, u2
             row = EPA_ROW + EPA_W + p
@@ -251,7 +253,7 @@ def centre_set_bounds(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work
         if not yn > 0.0:
             return BH_DEGENERATE, lower_m - S, upper_m - S, b0, b1, b2, cuts
         u0, u1, u2 = y0 / yn, y1 / yn, y2 / yn
-        hl, h = _centre_support(kA, fA, iA, kB, fB, iB, R, t, S, u0, u1, u2, warm, work)
+        hl, h = _centre_support(pair, S, u0, u1, u2, warm, work)
         if h > lower_m:
             lower_m, b0, b1, b2 = h, u0, u1, u2
             if _closed(upper_m - S, lower_m - S, tol_abs, tol_rel):

@@ -116,7 +116,7 @@ def _to_world(TA, out):
 
 
 @kernel
-def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out, R, t, work, iwork):
+def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out, scratch):
     """One query with world-frame results in out; warm-start state in ints/floats is updated.
     R, t, work, iwork: scratch (see :func:`query_scratch`), which the caller keeps: a signed query's
     polytope needs megabytes, too many to allocate per call.
@@ -128,7 +128,7 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out, R, t, work, iwork):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, R, t, work, iwork, out)
+    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, scratch, out)
     return POSE_OK
 
 
@@ -140,7 +140,7 @@ def query_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 @kernel(nogil=True)  # threads run chunks of one batch at once (spq.workers)
-def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R, t, work, iwork):
+def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, scratch):
     """Queries for N pose pairs into out (N, OUT_SIZE). poses_a/poses_b: (N or 1, 4, 4), broadcast.
 
     coherent: carry the warm start (features, direction) from each query to the next, as along a
@@ -160,16 +160,17 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, R
             return q * 100 + 10 + cb
     for q in range(n):
         posed_query(fA, iA, fB, iB, ints, floats, poses_a[q if na > 1 else 0], poses_b[q if nb > 1 else 0],
-                    coherent, R, t, work, iwork, out[q])
+                    coherent, scratch, out[q])
     return -1
 
 
 @kernel(inline="always")
-def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, R, t, work, iwork, row):
+def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, scratch, row):
     """One query of a packed pair (ints, floats rows) at world poses TA, TB into row, world frame.
 
     coherent: keep the pair's warm start if B moved little relative to A; otherwise start cold.
     R, t, work, iwork: scratch (see :func:`query_scratch`)."""
+    R, t, work, iwork = scratch
     warm = ints[I_WARM:I_WARM + WARM_SIZE]
     d = floats[F_DIR:F_DIR + 3]
     relative_pose(TA, TB, R, t)
@@ -179,8 +180,8 @@ def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, R, t, work, iwor
         clear_warm(warm)
         d[0] = d[1] = d[2] = 0.0  # not d[:] = 0.0, a call to memset (see clear_warm)
     signed = ints[I_SIGNED] != 0
-    gjk_query(ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t,
-              floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER], d, floats[F_CENTRES:F_CENTRES + 6], warm, iwork,
+    gjk_query((ints[I_KIND_A], floats[F_MARGIN_A], fA, iA, ints[I_KIND_B], floats[F_MARGIN_B], fB, iB, R, t),
+              (floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER]), d, floats[F_CENTRES:F_CENTRES + 6], warm, iwork,
               work, row, signed)
     row[OUT_UPPER] = row[OUT_DISTANCE]  # every path leaves its upper bound there
     _to_world(TA, row)

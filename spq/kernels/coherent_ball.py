@@ -80,11 +80,12 @@ def _recentre(fP, c0, c1, c2, W, FI, k):
 
 
 @kernel
-def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel, max_iter, work):
+def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol, work):
     """GJK between the point c and the polytope (its frame) from the simplex of k vertex ids in
     work's FI rows (rows as _put_vertex's); the stop rule is the certificate's, on the distance
     minus rad and the margin mP. Returns (ok, k, v = nearest point - c, |v|, last support vertex,
     iterations); not ok when the point is within rad + mP + tol_abs, or the search stalls."""
+    tol_abs, tol_rel, max_iter = tol
     W = work[0:4]
     lam = work[12]
     FI = work[20:22]
@@ -114,10 +115,11 @@ def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel, max_iter, w
 
 
 @kernel
-def _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, u0, u1, u2):
+def _torus_ball_facing(torus, fP, FI, k, c0, c1, c2, u0, u1, u2):
     """Centre (polytope's frame) of torus patch's ball facing the polytope feature of k vertex ids in
     FI (a vertex, an edge, or a face, whose ball is the one along u, the STP side's frame, taken
     as the face's normal towards it); c: the current centre."""
+    fS, iS, patch, stp_a, R, t = torus
     if k == 1:
         v = int(FI[0, 0])
         q0, q1, q2 = _p_to_s(stp_a, R, t, fP[at(3 * v)], fP[at(3 * v + 1)], fP[at(3 * v + 2)])
@@ -150,22 +152,24 @@ TORUS_ROUNDS = 4  # ball-facing-feature rounds on one torus before giving up to 
 
 
 @kernel
-def _torus_centre_gjk(fS, iS, patch, stp_a, R, t, fP, iP, mP, c0, c1, c2, rad, k, s, u0, u1, u2, tol_abs, tol_rel,
-                      max_iter, work):
+def _torus_centre_gjk(torus, poly, c0, c1, c2, rad, k, s, u, tol, work):
     """_centre_gjk for torus patch, whose ball depends on the feature it faces: the ball facing
     the simplex's feature (k ids in work's FI rows; along u, the STP side's frame, for a face), the
     search from it, and again while the search ends on another feature. Returns _centre_gjk's
     results, then the centre (polytope's frame); not ok if the feature has not settled within
     TORUS_ROUNDS. Along a trajectory the feature is the last query's, and one search settles it."""
+    tol_abs, tol_rel, max_iter = tol
+    fS, iS, patch, stp_a, R, t = torus
+    fP, iP, mP = poly
+    u0, u1, u2 = u
     W = work[0:4]
     FI = work[20:22]
     it = 0
     for r in range(TORUS_ROUNDS):
-        c0, c1, c2 = _torus_ball_facing(fS, iS, patch, stp_a, R, t, fP, FI, k, c0, c1, c2, u0, u1, u2)
+        c0, c1, c2 = _torus_ball_facing(torus, fP, FI, k, c0, c1, c2, u0, u1, u2)
         _recentre(fP, c0, c1, c2, W, FI, k)
         ka, a0, a1, a2 = k, FI[0, 0], FI[0, 1], FI[0, 2]
-        ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel,
-                                                       max_iter, work)
+        ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol, work)
         it += used
         if not ok:
             break
@@ -178,7 +182,7 @@ def _torus_centre_gjk(fS, iS, patch, stp_a, R, t, fP, iP, mP, c0, c1, c2, rad, k
 
 
 @kernel(inline="always")
-def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, warm, work, out):
+def coherent_ball_finish(pair, tol, dir_in, warm, work, out):
     """Settle an STP-BV-against-polytope query on the last query's patch and polytope feature.
 
     dir_in: the last normal (A's frame, A to B), along which a torus's first ball is taken.
@@ -186,6 +190,8 @@ def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel,
     simplex ids its feature's vertices). R, t: B's pose in A's frame. work: (>= 22, 4) scratch.
     Returns the GJK iterations used, out then holding the result in A's frame (as gjk_query's) and
     warm the new feature; or -1, nothing written to out or warm."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
     stp_a = kA == STP
     if stp_a == (kB == STP):
         return -1
@@ -229,12 +235,11 @@ def coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel,
         if step == PATCH_STEPS:
             return -1
         if patch >= n_spheres:
-            ok, k, v0, v1, v2, core, s, used, c0, c1, c2 = _torus_centre_gjk(fS, iS, patch, stp_a, R, t, fP, iP, mP,
-                                                                            c0, c1, c2, rad, k, s, u0, u1, u2,
-                                                                            tol_abs, tol_rel, max_iter, work)
+            ok, k, v0, v1, v2, core, s, used, c0, c1, c2 = _torus_centre_gjk((fS, iS, patch, stp_a, R, t), (fP, iP, mP),
+                                                                            c0, c1, c2, rad, k, s, (u0, u1, u2),
+                                                                            tol, work)
         else:
-            ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol_abs, tol_rel,
-                                                           max_iter, work)
+            ok, k, v0, v1, v2, core, s, used = _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol, work)
         it += used
         if not ok:
             return -1

@@ -198,22 +198,24 @@ def _swap_vertices(work, iw, i, j):
 
 
 @kernel(inline="always")
-def _support_inline(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work):
+def _support_inline(pair, d0, d1, d2, warm, work):
     """Support point of D along d into the scratch rows (pa, pb, then w = pa - pb); returns h_D
     along the unit vector of d."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     pa = work[EPA_ROW + EPA_TMP]
     pb = work[EPA_ROW + EPA_TMP + 1]
     w = work[EPA_ROW + EPA_TMP + 2]
-    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, w)
+    minkowski_support(pair, d0, d1, d2, warm, pa, pb, w)
     for c in range(3):
         w[c] = pa[c] - pb[c]
     return (d0 * w[0] + d1 * w[1] + d2 * w[2]) / math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
 @kernel
-def _support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work):
+def _support(pair, d0, d1, d2, warm, work):
     """_support_inline as a call (the initial tetrahedron's many supports need not be inlined)."""
-    return _support_inline(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work)
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    return _support_inline(pair, d0, d1, d2, warm, work)
 
 
 @kernel(inline="always")
@@ -322,12 +324,13 @@ def _axis_direction(k):
 
 
 @kernel
-def _grow(kA, fA, iA, kB, fB, iB, R, t, m, warm, work, iw):
+def _grow(pair, m, warm, work, iw):
     """Add support points to the m (< 4) independent vertices until they are four: the one farthest
     from vertex 0 of the six axis directions' supports, then of six directions around the segment,
     then the farther of the two along the triangle's normals. Returns (m, lower): m < 4 when D
     does not extend beyond the current line or plane (it is flat there), with lower the best bound
     sd >= -h_D(n) met on the way."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     lower = -math.inf
     size = _size(work, m)
     tmp = EPA_ROW + EPA_TMP + 2
@@ -335,7 +338,7 @@ def _grow(kA, fA, iA, kB, fB, iB, R, t, m, warm, work, iw):
         best, bk = -1.0, 0
         for k in range(6):
             d0, d1, d2 = _axis_direction(k)
-            lower = max(lower, -_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work))
+            lower = max(lower, -_support(pair, d0, d1, d2, warm, work))
             a = _row(0)
             dist = math.sqrt((work[tmp, 0] - work[a, 0]) ** 2 + (work[tmp, 1] - work[a, 1]) ** 2
                              + (work[tmp, 2] - work[a, 2]) ** 2)
@@ -345,7 +348,7 @@ def _grow(kA, fA, iA, kB, fB, iB, R, t, m, warm, work, iw):
         if not (best > FLAT_REL * size):
             return 1, lower
         d0, d1, d2 = _axis_direction(bk)
-        _support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, work)
+        _support(pair, d0, d1, d2, warm, work)
         _keep_support(work, iw, warm, 1)
         m = 2
     if m == 2:
@@ -363,7 +366,7 @@ def _grow(kA, fA, iA, kB, fB, iB, R, t, m, warm, work, iw):
         best, bk = -1.0, 0
         for k in range(6):  # six directions around the segment, 60 degrees apart
             c, s = math.cos(k * math.pi / 3.0), math.sin(k * math.pi / 3.0)
-            lower = max(lower, -_support(kA, fA, iA, kB, fB, iB, R, t, c * x0 + s * y0, c * x1 + s * y1,
+            lower = max(lower, -_support(pair, c * x0 + s * y0, c * x1 + s * y1,
                                          c * x2 + s * y2, warm, work))
             _keep_support(work, iw, warm, 2)
             size = max(size, abs(work[tmp, 0]), abs(work[tmp, 1]), abs(work[tmp, 2]))
@@ -373,22 +376,22 @@ def _grow(kA, fA, iA, kB, fB, iB, R, t, m, warm, work, iw):
         if not (best > FLAT_REL * size):
             return 2, lower
         c, s = math.cos(bk * math.pi / 3.0), math.sin(bk * math.pi / 3.0)
-        _support(kA, fA, iA, kB, fB, iB, R, t, c * x0 + s * y0, c * x1 + s * y1, c * x2 + s * y2, warm, work)
+        _support(pair, c * x0 + s * y0, c * x1 + s * y1, c * x2 + s * y2, warm, work)
         _keep_support(work, iw, warm, 2)
         m = 3
     if m == 3:
         n0, n1, n2 = _plane_normal(work, 0, 1, 2)
-        hp = _support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+        hp = _support(pair, n0, n1, n2, warm, work)
         above = _off_plane(work, 0, 1, 2, tmp)
         size = max(size, abs(work[tmp, 0]), abs(work[tmp, 1]), abs(work[tmp, 2]))
-        hm = _support(kA, fA, iA, kB, fB, iB, R, t, -n0, -n1, -n2, warm, work)
+        hm = _support(pair, -n0, -n1, -n2, warm, work)
         below = -_off_plane(work, 0, 1, 2, tmp)
         size = max(size, abs(work[tmp, 0]), abs(work[tmp, 1]), abs(work[tmp, 2]))
         lower = max(lower, -hp, -hm)
         if not (max(above, below) > FLAT_REL * size):
             return 3, lower
         if above > below:
-            _support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            _support(pair, n0, n1, n2, warm, work)
         _keep_support(work, iw, warm, 3)
         m = 4
     return m, lower
@@ -702,14 +705,15 @@ def _best_witness(work, out):
 
 
 @kernel
-def _exact_deepest(kA, fA, iA, kB, fB, iB, R, t, i, lower, warm, work):
+def _exact_deepest(pair, i, lower, warm, work):
     """The bound sd >= lower, improved by the support along vertex i's deepest sphere normal u* if
     its cap holds u* and its depth there beats the bound (spq.kernels.epa_caps); that support is
     then kept as the exact witness. Returns the bound."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     ok, v0, v1, v2, depth = deepest_normal(work, i)
     if not ok or not -depth > lower:
         return lower
-    h = _support_inline(kA, fA, iA, kB, fB, iB, R, t, v0, v1, v2, warm, work)
+    h = _support_inline(pair, v0, v1, v2, warm, work)
     if -h > lower:
         keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], v0, v1, v2)
         return -h
@@ -766,13 +770,15 @@ def bounds_closed(upper, lower, tol_abs, tol_rel):
 
 
 @kernel
-def epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw, out):
+def epa_start(pair, k, simplex, warm, work, iw, out):
     """The initial polytope: the k simplex points (rows of SW = SPA - SPB, their support features in
     the columns of SFI), reduced to independent ones and grown into a tetrahedron.
 
     Returns (nv, top, c0, c1, c2, lower): vertices, face slots used, a point strictly inside the
     polytope (its centroid: the polytope only grows), and the bound sd >= lower met on the way.
     nv < 4: D is flat (no tetrahedron), and out's normal is one across it (see _flat_normal)."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    SW, SPA, SPB, SFI = simplex
     nv = 0
     for i in range(k):
         if not _is_vertex(work, nv, SW[i]):
@@ -782,7 +788,7 @@ def epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw
     lower = -math.inf
     nv = _span(work, iw, nv)
     if nv < 4:
-        nv, lower = _grow(kA, fA, iA, kB, fB, iB, R, t, nv, warm, work, iw)
+        nv, lower = _grow(pair, nv, warm, work, iw)
         if nv < 4:
             _flat_normal(work, nv, out)
             return nv, 0, 0.0, 0.0, 0.0, lower
@@ -802,7 +808,7 @@ def epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw
 
 
 @kernel
-def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c0, c1, c2, upper, lower, warm,
+def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             work, iw, out):
     """Grow the polytope of epa_start (nv vertices, top face slots, interior point c) on the supports
     of cores A and B until the bounds upper (sd <= upper) and lower close, from the given ones.
@@ -815,6 +821,9 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
     (distance = upper, witness points, normal, bounds, status: FAILED if not closed) is in out,
     A's frame, margins not included. EPA_OUTSIDE: out's normal is the outward normal of the face
     the origin lies beyond; nothing else is written."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
+    c0, c1, c2 = c
     size = _size(work, nv)
     it = 0
     steps = min(EPA_STEPS_PER_ITERATION * max_iter, EPA_MAX_STEPS)
@@ -850,7 +859,7 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
             caps = True
             iw[EPA_IOFF + EPA_CAPS] = 1
         row = EPA_ROW + EPA_PLANES + f
-        h = _support_inline(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm, work)
+        h = _support_inline(pair, work[row, 0], work[row, 1], work[row, 2], warm, work)
         lower = max(lower, -h)
         if bounds_closed(upper, lower, tol_abs, tol_rel):
             closed = True
@@ -866,7 +875,7 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
             break
         _keep_support(work, iw, warm, nv)
         if caps:
-            support_sphere(kA, fA, iA, kB, fB, iB, R, t, work[row, 0], work[row, 1], work[row, 2], warm[0], warm[1],
+            support_sphere(pair, work[row, 0], work[row, 1], work[row, 2], warm[0], warm[1],
                            work, nv)
         else:
             clear_sphere(work, nv)
@@ -876,7 +885,7 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
             break
         nv += 1
         if caps:
-            lower = _exact_deepest(kA, fA, iA, kB, fB, iB, R, t, nv - 1, lower, warm, work)
+            lower = _exact_deepest(pair, nv - 1, lower, warm, work)
     if not closed and (stop == STOP_HORIZON or stop == STOP_FAN_SLIVER or stop == STOP_FAN_INWARD):
         # an expansion that floating point cannot make (a support point on a horizon edge's line) is
         # a stall as much as a support point on the face: the same slack settles it
@@ -902,7 +911,7 @@ def epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv, top, c
 
 
 @kernel
-def epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, k, SW, SPA, SPB, SFI, upper0, lower0, warm,
+def epa(pair, tol, k, simplex, upper0, lower0, warm,
         work, iw, out):
     """Signed distance of cores A and B (B at (R, t) in A's frame) from a GJK simplex of k support
     points (rows of SW = SPA - SPB, their support features in the columns of SFI) that ended with
@@ -914,12 +923,15 @@ def epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, k, SW, SPA, SP
     tolerance. EPA_RESULT and EPA_OUTSIDE: see epa_run. EPA_FLAT: D has no tetrahedron; out's
     normal is one across it (NaN: any direction).
     """
-    nv, top, c0, c1, c2, low = epa_start(kA, fA, iA, kB, fB, iB, R, t, k, SW, SPA, SPB, SFI, warm, work, iw, out)
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
+    SW, SPA, SPB, SFI = simplex
+    nv, top, c0, c1, c2, low = epa_start(pair, k, simplex, warm, work, iw, out)
     lower = max(lower0, low)
     if nv < 4:
         return EPA_FLAT, False, upper0, lower, 0
-    outcome, closed, upper, lower, it, nv, top = epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, nv,
-                                                         top, c0, c1, c2, upper0, lower, warm, work, iw, out)
+    outcome, closed, upper, lower, it, nv, top = epa_run(pair, tol, nv,
+                                                         top, (c0, c1, c2), upper0, lower, warm, work, iw, out)
     return outcome, closed, upper, lower, it
 
 

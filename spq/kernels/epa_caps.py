@@ -75,9 +75,10 @@ def sphere_around(kind, f, ix, feature, u0, u1, u2):
 
 
 @kernel
-def support_sphere(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, fa, fb, work, i):
+def support_sphere(pair, d0, d1, d2, fa, fb, work, i):
     """Vertex i's cap: D's support along unit normals within alpha of d, whose support features were
     fa (A) and fb (B), is C + rho v. Stored as rows (C, rho) and (u, cos alpha), A's frame."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     row = EPA_ROW + EPA_SPHERES + 2 * i
     work[row, 3] = NO_SPHERE
     n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)

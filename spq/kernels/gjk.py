@@ -292,8 +292,9 @@ def reduce_simplex(W, PA, PB, FI, k, lam, scratch):
 # support of the Minkowski difference A - B, in A's frame
 # ------------------------------------------------------------------------------------------
 @kernel(inline="always")
-def minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tmp):
+def minkowski_support(pair, d0, d1, d2, warm, pa, pb, tmp):
     """pa = s_A(d), pb = s_B(-d) (both in A's frame); warm[0], warm[1] updated with the features."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     warm[0] = support_local(kA, fA, iA, d0, d1, d2, warm[0], pa)
     # -d in B's frame is -R^T d
     e0 = -(R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2)
@@ -381,7 +382,7 @@ PROBE_RADIUS_IN_TOL = 4.0  # probe tetrahedron circumradius, in units of tol_abs
 
 
 @kernel
-def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm, work, iwork):
+def certify_overlap(pair, tol, warm, work, iwork):
     """OVERLAPPING if the origin is certainly inside A - B, else TOUCHING.
 
     The origin is inside A - B by at least s/3 - tol_abs if the four corners q of a regular
@@ -390,6 +391,8 @@ def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, wa
     with B shifted by q, since distance(q, A - B) = distance(A, B + q). work: (DESCENT_ROWS + 2, 4)
     and iwork: int64 (WARM_SIZE,) scratch.
     """
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
     s = PROBE_RADIUS_IN_TOL * tol_abs
     tq = work[DESCENT_ROWS, 0:3]
     zero = work[DESCENT_ROWS + 1, 0:3]
@@ -399,7 +402,7 @@ def certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, wa
         for c in range(3):
             tq[c] = t[c] + s * _PROBES[p, c]
             zero[c] = 0.0
-        st, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, tq, tol_abs, tol_rel, max_iter,
+        st, k, v0, v1, v2, vv, lower, it = descend((kA, mA, fA, iA, kB, mB, fB, iB, R, tq), tol,
                                                    zero, iwork, work)
         if st != OVERLAPPING and st != TOUCHING:
             return TOUCHING
@@ -422,12 +425,14 @@ def _combine(P, lam, k, out, offset):
 
 
 @kernel
-def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, warm, work):
+def descend(pair, tol, dir_in, warm, work):
     """The GJK descent: shrink the simplex towards the origin until the certificate closes.
 
     Returns (status, k, v0, v1, v2, |v|^2, lower bound, iterations); the simplex (k points) and
     its weights stay in work. TOUCHING here means |v| <= tol_abs, overlap not yet decided.
     """
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
     W = work[0:4]
     PA = work[4:8]
     PB = work[8:12]
@@ -459,7 +464,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
             d0, d1, d2 = t[0], t[1], t[2]
             if d0 * d0 + d1 * d1 + d2 * d2 == 0.0:
                 d0 = 1.0
-        minkowski_support(kA, fA, iA, kB, fB, iB, R, t, d0, d1, d2, warm, pa, pb, tmp)
+        minkowski_support(pair, d0, d1, d2, warm, pa, pb, tmp)
         _push(W, PA, PB, FI, 0, pa, pb, warm)
         k = 1
         lam[0] = 1.0
@@ -472,7 +477,7 @@ def descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_in, wa
         if upper <= zero_tol:
             status = TOUCHING
             break
-        minkowski_support(kA, fA, iA, kB, fB, iB, R, t, -v0, -v1, -v2, warm, pa, pb, tmp)
+        minkowski_support(pair, -v0, -v1, -v2, warm, pa, pb, tmp)
         work[FRESH_ROW, FRESH_COL] = 1.0
         w0, w1, w2 = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
         vw = v0 * w0 + v1 * w1 + v2 * w2
@@ -534,8 +539,10 @@ descend_inline = kernel(inline="hot")(getattr(descend, "py_func", descend))  # p
 
 
 @kernel
-def _finish(status, k, lam, PA, PB, v0, v1, v2, vv, lower, it, mA, mB, tol_abs, dir_io, out):
+def _finish(status, k, simplex, v, vv, lower, it, mA, mB, tol_abs, dir_io, out):
     """Witness points, normal, margins and the final status into out."""
+    v0, v1, v2 = v
+    lam, PA, PB = simplex
     _combine(PA, lam, k, out, OUT_POINT_A)
     _combine(PB, lam, k, out, OUT_POINT_B)
     dx = out[OUT_POINT_B] - out[OUT_POINT_A]

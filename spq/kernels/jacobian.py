@@ -50,13 +50,13 @@ def joint_axes(links, joint_axis, out):
 
 
 @kernel
-def add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, link, stop, p, n, sign,
-                  row):
+def add_point_row(links, axes, chain, base, floating, link, stop, p, n, sign, row):
     """row += sign · nᵀ J(p) for the world point p (3,) fixed to ``link``, along the world direction n (3,),
     over the joints from ``link`` up to, not including, link ``stop`` (TO_ROOT: every joint and the base).
 
     row (nv,): the base's six columns first when ``floating``, then the joints'. A link index outside
-    the model (the world) adds nothing."""
+    the model (the world) adds nothing. chain: as :func:`spq.kernels.scene.scene_distances` takes it."""
+    parent, joint_type, _, _, q_index, q_multiplier, _ = chain
     nlinks = parent.shape[0]
     if link < 0 or link >= nlinks:
         return
@@ -91,8 +91,7 @@ def add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, 
 
 
 @kernel
-def pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, slot_link, pair_slots,
-                   pair_stop, signed, out, jac):
+def pair_jacobians(links, axes, chain, base, floating, slot_link, pair_slots, pair_stop, signed, out, jac):
     """Every pair's row ∂d/∂q into jac (npairs, nv) from its query result out (npairs, OUT_SIZE);
     pair_stop (npairs,): each pair's lowest common ancestor link, or TO_ROOT.
 
@@ -115,38 +114,39 @@ def pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base,
             row[:] = nan
             continue
         n = res[OUT_NORMAL:OUT_NORMAL + 3]
-        add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating,
-                      slot_link[pair_slots[p, 0]], pair_stop[p], res[OUT_POINT_A:OUT_POINT_A + 3], n, -1.0, row)
-        add_point_row(links, axes, parent, joint_type, q_index, q_multiplier, base, floating,
-                      slot_link[pair_slots[p, 1]], pair_stop[p], res[OUT_POINT_B:OUT_POINT_B + 3], n, 1.0, row)
+        add_point_row(links, axes, chain, base, floating, slot_link[pair_slots[p, 0]], pair_stop[p],
+                      res[OUT_POINT_A:OUT_POINT_A + 3], n, -1.0, row)
+        add_point_row(links, axes, chain, base, floating, slot_link[pair_slots[p, 1]], pair_stop[p],
+                      res[OUT_POINT_B:OUT_POINT_B + 3], n, 1.0, row)
 
 
 @kernel(nogil=True)  # threads run chunks of the configurations at once (spq.workers)
-def scene_distances_jacobians(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, qs,
-                              slot_link, slot_offset, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool,
-                              slot_centre, slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, links,
-                              poses, R, t, work, iwork, out, floating, pair_stop, signed, axes, jac):
+def scene_distances_jacobians(chain, base, qs, slots, pairs, coherent, prune, links, poses, scratch, out, gradient):
     """:func:`spq.kernels.scene.scene_distances` and every pair's row ∂d/∂q in one compiled loop: per
     configuration, forward kinematics, the slot poses, every pair's query into out[i], then the rows
     into jac[i] (N, npairs, nv) from the same link poses. The arguments up to ``out`` are
-    scene_distances'; floating, pair_stop, signed as in :func:`pair_jacobians`; axes (nlinks, 3) scratch."""
+    scene_distances'; gradient: (floating, pair_stop, signed, axes, jac), the first three as in
+    :func:`pair_jacobians`, axes (nlinks, 3) scratch."""
+    parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset = chain
+    slot_link, slot_offset = slots[0], slots[1]
+    pair_slots = pairs[0]
+    floating, pair_stop, signed, axes, jac = gradient
     for i in range(qs.shape[0]):
         forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, qs[i], base,
                            links)
         slot_poses(links, slot_link, slot_offset, poses)
-        pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre, slot_radius,
-                       pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out[i])
+        pairs_at_poses(poses, slots, pairs, coherent, prune, scratch, out[i])
         joint_axes(links, joint_axis, axes)
-        pair_jacobians(links, axes, parent, joint_type, q_index, q_multiplier, base, floating, slot_link, pair_slots,
-                       pair_stop, signed, out[i], jac[i])
+        pair_jacobians(links, axes, chain, base, floating, slot_link, pair_slots, pair_stop, signed, out[i], jac[i])
 
 
 @kernel
-def point_jacobian(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, floating, q,
-                   link, p, links, axes, out):
+def point_jacobian(chain, base, floating, q, link, p, links, axes, out):
     """out (6, nv) = the Jacobian of the world point p (3,) fixed to ``link``: rows 0..2 its linear
     velocity, rows 3..5 the link's angular velocity (world frame), per unit rate of each column.
-    links (>= nlinks, 4, 4), axes (nlinks, 3): scratch."""
+    chain: as :func:`spq.kernels.scene.scene_distances` takes it. links (>= nlinks, 4, 4),
+    axes (nlinks, 3): scratch."""
+    parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset = chain
     forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, q, base, links)
     joint_axes(links, joint_axis, axes)
     out[:, :] = 0.0

@@ -96,7 +96,9 @@ def _one_version_per_type(dispatcher):
     """A kernel called from another with a constant argument is compiled for that constant's literal
     type (numba's default), so a kernel called with kinds 0, 1 and 2 was compiled three times over,
     each copy with every kernel it calls: here the callee sees the argument's plain type."""
-    typed_for = dispatcher.get_call_template
+    typed_for = getattr(dispatcher, "get_call_template", None)
+    if typed_for is None:  # NUMBA_DISABLE_JIT: a plain function
+        return dispatcher
 
     def get_call_template(args, kws):
         return typed_for(tuple(types.unliteral(a) for a in args),

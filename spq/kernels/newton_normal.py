@@ -94,7 +94,7 @@ def _form(JA, JB, R, x0, x1, x2, y0, y1, y2):
 
 
 @kernel
-def newton_normal(fA, fB, R, t, n0, n1, n2, lower, tol_abs, tol_rel, best_a, best_b, work):
+def newton_normal(fA, fB, R, t, n, lower, tol_abs, tol_rel, best_a, best_b, work):
     """Newton's method from the unit normal n (A to B, A's frame) of a separated pair of smooth
     superellipsoids (see :func:`smooth_pair`), B at (R, t) in A's frame.
 
@@ -103,6 +103,7 @@ def newton_normal(fA, fB, R, t, n0, n1, n2, lower, tol_abs, tol_rel, best_a, bes
     the normal to resume from. converged: upper - lower <= tol_abs + tol_rel * upper.
     work: (9, 3) scratch.
     """
+    n0, n1, n2 = n
     pa = work[0]
     pb = work[1]
     tmp = work[2]

@@ -194,7 +194,7 @@ def _wrapped(x):
 
 
 @kernel
-def _torus_step(f, ix, p, d0, d1, d2, m0, m1, m2, x0, x1, x2, exact, bp, lt, lh, pt, ph, nt, nh):
+def _torus_step(f, ix, p, d, m, x0, x1, x2, exact, state):
     """Next search direction (local frame) for torus patch p, whose ball was taken along d and gave
     the normal m; x is the proposed direction (exact: the ball solved against this round's witness
     feature, a polytope vertex or edge; else the plain update).
@@ -212,6 +212,9 @@ def _torus_step(f, ix, p, d0, d1, d2, m0, m1, m2, x0, x1, x2, exact, bp, lt, lh,
     State, carried between rounds: bp, the torus; (lt, lh), its last round's (angle, h); (pt, ph)
     and (nt, nh), its last rounds with h > 0 and h < 0 (NaN: none yet).
     Returns (direction, whether it is the exact proposal unchanged, new state)."""
+    d0, d1, d2 = d
+    m0, m1, m2 = m
+    bp, lt, lh, pt, ph, nt, nh = state
     an = torus_angle(f, ix, p, d0, d1, d2)
     h = _wrapped(torus_angle(f, ix, p, m0, m1, m2) - an)
     if bp != p:
@@ -283,7 +286,7 @@ def _owned_support(known, k, f, ix, p, u0, u1, u2, warm, slot, out):
 
 
 @kernel(inline="hot")
-def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known, out):
+def _certify(pair, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, known, out):
     """Whether the bodies' own supports along the unit normal m (A's frame, A to B) close the gap:
     upper = |p_B - p_A| for the witness points in out (a non-STP side's must be set, margin
     included; an STP side's is its support, written here), lower = the width of the slab between
@@ -292,6 +295,7 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
     support along m (margin included, A's frame) the caller put in fscratch[0] / fscratch[1], as a
     descent's last support points are when taken along its final direction; an STP side's patch
     must still own m, as it does not when another patch reaches farther."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     sa = fscratch[0]
     sb = fscratch[1]
     tmp = fscratch[2]
@@ -307,14 +311,17 @@ def _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, 
         sb[0], sb[1], sb[2] = to_a(R, t, tmp[0], tmp[1], tmp[2])
         for c in range(3):
             sb[c] -= mB * (m0, m1, m2)[c]
-    return _close_gap(kA, kB, sa[0], sa[1], sa[2], sb[0], sb[1], sb[2], m0, m1, m2, tol_abs, tol_rel, out)
+    return _close_gap(kA, kB, (sa[0], sa[1], sa[2]), (sb[0], sb[1], sb[2]), (m0, m1, m2), tol_abs, tol_rel, out)
 
 
 @kernel(inline="always")
-def _close_gap(kA, kB, sa0, sa1, sa2, sb0, sb1, sb2, m0, m1, m2, tol_abs, tol_rel, out):
+def _close_gap(kA, kB, sa, sb, m, tol_abs, tol_rel, out):
     """_certify's test, given the supports sa, sb (margins included, A's frame) along the unit normal m:
     whether the gap between the witness points in out (an STP side's set to its support here) and the
     slab between the support planes close; if so, the result is written to out."""
+    sa0, sa1, sa2 = sa
+    sb0, sb1, sb2 = sb
+    m0, m1, m2 = m
     if kA == STP:
         out[OUT_POINT_A], out[OUT_POINT_A + 1], out[OUT_POINT_A + 2] = sa0, sa1, sa2
     if kB == STP:
@@ -336,7 +343,7 @@ def _close_gap(kA, kB, sa0, sa1, sa2, sb0, sb1, sb2, m0, m1, m2, tol_abs, tol_re
 
 
 @kernel
-def _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, tol_rel, warm, pwork, iprobe, out):
+def _certify_overlap(pair, m0, m1, m2, tol_abs, tol_rel, warm, pwork, iprobe, out):
     """The certificate of an overlap along the unit normal m (A's frame, A to B), with an STP-BV on a
     side: 1 if it closes (result in out, margins included), 0 if not (out untouched), -1 if it
     cannot here.
@@ -348,6 +355,7 @@ def _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, 
     from above. At the optimal normal the two meet while the overlap is shallower than r: the small
     balls then face the other body as the STP-BVs do (deeper, their centres pass into it: -1).
     pwork: (DESCENT_ROWS + 2, 4) and iprobe: int64 (WARM_SIZE,) scratch."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     sa = pwork[DESCENT_ROWS]
     sb = pwork[DESCENT_ROWS + 1]
     for i in range(WARM_SIZE):
@@ -357,7 +365,7 @@ def _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, 
         # the small ball's centre lies near the facing patch's ball centre, whose descent against the
         # core left its simplex in warm: the centre's descent starts from it
         copy_point_simplex(warm, iprobe, 0 if kA == STP else 1)
-    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, m0, m1, m2, iprobe, sa, sb, pwork[16])
+    minkowski_support(pair, m0, m1, m2, iprobe, sa, sb, pwork[16])
     low = -(m0 * (sa[0] - sb[0]) + m1 * (sa[1] - sb[1]) + m2 * (sa[2] - sb[2]) + mA + mB)
     ra = fA[F_R] if kA == STP else 0.0
     rb = fB[F_R] if kB == STP else 0.0
@@ -380,8 +388,8 @@ def _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, 
         tq[0], tq[1], tq[2] = (t[0] - c0, t[1] - c1, t[2] - c2) if point_a else (c0, c1, c2)
         dirv = pwork[DESCENT_ROWS]
         dirv[0], dirv[1], dirv[2] = m0, m1, m2
-        status, k, v0, v1, v2, vv, lower, it = descend(POINT if point_a else kA, fA, iA, kB if point_a else POINT,
-                                                       fB, iB, R, tq, tol_abs, tol_rel, FINISH_DESCENT_ITER, dirv,
+        probe = (POINT if point_a else kA, 0.0, fA, iA, kB if point_a else POINT, 0.0, fB, iB, R, tq)
+        status, k, v0, v1, v2, vv, lower, it = descend(probe, (tol_abs, tol_rel, FINISH_DESCENT_ITER), dirv,
                                                        iprobe, pwork)
         if status != SEPARATED:
             return -1  # the centre reaches the other core: the overlap is deeper than r
@@ -428,7 +436,7 @@ def _closest_on_segment(s0, s1, s2, t0, t1, t2, x0, x1, x2):
 
 
 @kernel
-def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
+def finish_on_patches(pair, n, tol, warm, work,
                       iscratch, fscratch, coherent, out, overlap, iprobe):
     """Try to settle the query on the balls of the STP patches facing along n (A's frame, A to B).
 
@@ -446,6 +454,9 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
     centres lie outside the other body), but the certificate is _certify_overlap's, by the small
     balls inside the STP-BVs; iprobe: int64 (WARM_SIZE,) scratch for it. Stops at once (-1) where
     that certificate cannot hold (an overlap deeper than the small radius r)."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
+    n0, n1, n2 = n
     used = 0
     pa = pb = -1
     hint_a = warm[0] if coherent and kA == STP else _hull_hint(iA, iscratch[0]) if kA == STP else -1
@@ -511,8 +522,8 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             # warm start: the polytope side's last support vertex and last simplex with the ball centre
             point_side = 0 if kA == STP else 1
             copy_point_simplex(warm, iscratch, point_side)
-            status, k, v0, v1, v2, vv, lower, it = descend(core_a, fA, iA, core_b, fB, iB, R, tmp, tol_abs, tol_rel,
-                                                           max_iter, dirv, iscratch, work)
+            status, k, v0, v1, v2, vv, lower, it = descend((core_a, 0.0, fA, iA, core_b, 0.0, fB, iB, R, tmp), tol,
+                                                           dirv, iscratch, work)
             copy_point_simplex(iscratch, warm, point_side)
             used += it
             if status != SEPARATED or (math.sqrt(vv) <= margin_a2 + margin_b2 + tol_abs and not overlap):
@@ -536,11 +547,11 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                     for c in range(3):
                         fscratch[0, c] = work[SUPPORT_ROW_A, c] + mA * (m0, m1, m2)[c]
         if overlap:
-            verdict = _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, m0, m1, m2, tol_abs, tol_rel, warm,
+            verdict = _certify_overlap(pair, m0, m1, m2, tol_abs, tol_rel, warm,
                                        work[PROBE_ROW:PROBE_END], iprobe, out)
             if verdict != 0:
                 return used if verdict > 0 else -1
-        elif _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+        elif _certify(pair, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
                       known, out):
             return used
         # the next direction, in the STP side's frame: its patch's ball against the other side's witness
@@ -575,8 +586,9 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
             x0, x1, x2, y0, y1, y2 = torus_against_segment(fs, ist, p, s0, s1, s2, t0, t1, t2, 0.5)
         kept = False
         if torus:
-            x0, x1, x2, kept, bp, lt, lh, pt, ph, nt, nh = _torus_step(fs, ist, p, d0, d1, d2, u0, u1, u2, x0, x1, x2,
-                                                                       k <= 2, bp, lt, lh, pt, ph, nt, nh)
+            x0, x1, x2, kept, bp, lt, lh, pt, ph, nt, nh = _torus_step(fs, ist, p, (d0, d1, d2), (u0, u1, u2),
+                                                                       x0, x1, x2, k <= 2,
+                                                                       (bp, lt, lh, pt, ph, nt, nh))
         xn = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
         if not (xn > 0.0):
             x0, x1, x2, xn = u0, u1, u2, 1.0
@@ -596,11 +608,11 @@ def finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
                 for c in range(3):
                     out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (n0, n1, n2)[c]
             if overlap:
-                verdict = _certify_overlap(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, warm,
+                verdict = _certify_overlap(pair, n0, n1, n2, tol_abs, tol_rel, warm,
                                            work[PROBE_ROW:PROBE_END], iprobe, out)
                 if verdict != 0:
                     return used if verdict > 0 else -1
-            elif _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch, 0,
+            elif _certify(pair, pa, pb, n0, n1, n2, tol_abs, tol_rel, warm, fscratch, 0,
                           out):
                 return used
     return -1
@@ -649,7 +661,7 @@ def hull_vertex_of_simplex(ix, ids, count):
 
 
 @kernel(inline="hot")
-def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2, vv, tol_abs, tol_rel, warm, work,
+def settle_on_small_spheres(pair, k, v0, v1, v2, vv, tol, warm, work,
                             scratch, fscratch, out):
     """Certify the loose search's result (simplex of k points in work, ids in scratch, closest point
     v of the hulls' difference) as the STP-BVs' own, without a patch finish; whether it did (result
@@ -659,6 +671,8 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
     the STP-BV's support along it is that vertex plus r times the normal, which is exactly the grown
     hull's support: the hull's distance is the STP-BV's. The bodies' supports along the normal
     certify it (this is the commonest case: small spheres own most of the directions at small r)."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
     count = scratch[WARM_COUNT]
     ha = hb = -1
     if kA == STP:
@@ -686,13 +700,14 @@ def settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2,
                 return False
         grow_a = mA + (fA[F_R] if kA == STP else 0.0)
         grow_b = mB + (fB[F_R] if kB == STP else 0.0)
-        if not _close_gap(kA, kB, work[SUPPORT_ROW_A, 0] + grow_a * m0, work[SUPPORT_ROW_A, 1] + grow_a * m1,
-                          work[SUPPORT_ROW_A, 2] + grow_a * m2, work[SUPPORT_ROW_B, 0] - grow_b * m0,
-                          work[SUPPORT_ROW_B, 1] - grow_b * m1, work[SUPPORT_ROW_B, 2] - grow_b * m2, m0, m1, m2,
-                          tol_abs, tol_rel, out):
+        sa = (work[SUPPORT_ROW_A, 0] + grow_a * m0, work[SUPPORT_ROW_A, 1] + grow_a * m1,
+              work[SUPPORT_ROW_A, 2] + grow_a * m2)
+        sb = (work[SUPPORT_ROW_B, 0] - grow_b * m0, work[SUPPORT_ROW_B, 1] - grow_b * m1,
+              work[SUPPORT_ROW_B, 2] - grow_b * m2)
+        if not _close_gap(kA, kB, sa, sb, (m0, m1, m2), tol_abs, tol_rel, out):
             return False
     else:
-        if not _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
+        if not _certify(pair, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, 0,
                         out):
             return False
     if kA == STP:
@@ -780,13 +795,14 @@ def _segment_of(P, lam, k):
 
 
 @kernel(inline="hot")
-def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel, warm, work, scratch, fscratch,
+def settle_on_feature(pair, k, tol_abs, tol_rel, warm, work, scratch, fscratch,
                       out):
     """Certify the distance of an STP-BV to a non-STP body whose side of the loose search's simplex
     (k points in work, ids in scratch) is a vertex or an edge: the distance is then that feature's
     to the STP-BV, which march_to_feature finds without any descent, if the feature is still the
     other body's nearest along the normal found (the bodies' supports certify it). Returns whether
     it did (result in out); otherwise the patch finish runs."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     if (kA == STP) == (kB == STP) or k < 1:
         return False
     if kA == STP:
@@ -801,7 +817,7 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
             out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (m0, m1, m2)[c]
             # the march's patch owns m: A's support along it is its ball's point
             fscratch[0, c] = (y0, y1, y2)[c] + (mA - gap) * (m0, m1, m2)[c]
-        settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+        settled = _certify(pair, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
                            KNOWN_A, out)
         if settled:
             warm[0] = p
@@ -821,7 +837,7 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
     for c in range(3):
         out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (m0, m1, m2)[c]
         fscratch[1, c] = (b0, b1, b2)[c] - mB * (m0, m1, m2)[c]
-    settled = _certify(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+    settled = _certify(pair, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
                        KNOWN_B, out)
     if settled:
         warm[1] = p
@@ -829,7 +845,7 @@ def settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel,
 
 
 @kernel(inline="always")
-def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, centres, warm, iwork, work,
+def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
               out, signed):
     """Distance between core A (+ margin mA) and core B (+ margin mB), B at (R, t) in A's frame.
 
@@ -844,9 +860,10 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     otherwise distance 0 and NaN points. Returns the status code.
 
     With an STP-BV on either side: first the patches that faced each other in the last query (against
-    a polytope by coherent_ball.coherent_ball_finish, else finish_on_patches); then a loose search on the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and
-    whose normal points at the facing patches; its simplex may settle the query at once
-    (settle_on_small_spheres, settle_on_feature), else it is settled on those patches
+    a polytope by coherent_ball.coherent_ball_finish, else finish_on_patches); then a loose search on
+    the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and whose normal points at
+    the facing patches; its simplex may settle the query at once (settle_on_small_spheres,
+    settle_on_feature), else it is settled on those patches
     (finish_on_patches); if that fails, the plain descent on the STP-BVs themselves. A pair that
     overlapped last time goes straight to the hull search, from the hulls' last simplex (which, if
     the cores still overlap, confirms it without a support call).
@@ -855,6 +872,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
     array as a struct of 7 to 9 words on the stack, and the two calls cost about a fifth of a
     coherent robot-scene query. A kernel with NRT must not inline it (see spq.kernels.jit).
     """
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
     extra = 0
     if kA == STP or kB == STP:
         n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
@@ -863,7 +882,7 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         # trajectory, 2% of the pairs overlap, and those failures took 13% of the time)
         overlapped = warm[WARM_HULL_OVERLAP] != 0
         if n > 0.0 and not overlapped:  # coherence: the patches that faced each other last time
-            used = coherent_ball_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io,
+            used = coherent_ball_finish(pair, tol, dir_io,
                                         warm, work, out)
             if used >= 0:
                 return _done(out, used, dir_io)
@@ -871,9 +890,8 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         clear_warm(scratch)
         fscratch = work[DESCENT_ROWS:PROBE_ROW]
         if n > 0.0 and not overlapped:
-            used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dir_io[0] / n, dir_io[1] / n,
-                                     dir_io[2] / n, tol_abs, tol_rel, max_iter, warm, work, scratch, fscratch, True,
-                                     out, False, scratch)
+            used = finish_on_patches(pair, (dir_io[0] / n, dir_io[1] / n, dir_io[2] / n), tol, warm, work, scratch,
+                                     fscratch, True, out, False, scratch)
             if used >= 0:
                 return _done(out, used, dir_io)
         ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
@@ -886,8 +904,9 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         if n == 0.0:
             cold_direction(R, t, centres, dir_io)
         loose = LOOSE_REL_TOL_ONE_STP if (kA == STP) != (kB == STP) else LOOSE_REL_TOL
-        status, k, v0, v1, v2, vv, lower, it = descend_inline(ka, fa, ia, kb, fb, ib, R, t, tol_abs,
-                                                              max(tol_rel, loose), max_iter, dir_io, scratch, work)
+        hulls = (ka, ma, fa, ia, kb, mb, fb, ib, R, t)
+        status, k, v0, v1, v2, vv, lower, it = descend_inline(hulls, (tol_abs, max(tol_rel, loose), max_iter), dir_io,
+                                                              scratch, work)
         extra = it
         if (kA == STP) != (kB == STP):  # its simplex on the polytope side seeds the patch finish
             copy_point_simplex(scratch, warm, 0 if kA == STP else 1)
@@ -898,9 +917,9 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
                 for i in range(WARM_SIZE):
                     warm[i] = scratch[i]
                 warm[WARM_HULL_OVERLAP] = 1
-                return signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k,
+                return signed_from_hulls(pair, tol, status, k,
                                          vv, extra, warm, work, iwork, out)
-            _finish(OVERLAPPING, k, work[12], work[4:8], work[8:12], v0, v1, v2, vv, lower, it, ma, mb,
+            _finish(OVERLAPPING, k, (work[12], work[4:8], work[8:12]), (v0, v1, v2), vv, lower, it, ma, mb,
                     tol_abs, dir_io, out)
             for i in range(WARM_SIZE):
                 warm[i] = scratch[i]
@@ -908,23 +927,22 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
             return int(out[OUT_STATUS])
         warm[WARM_HULL_OVERLAP] = 0
         if status == SEPARATED and vv > 0.0:
-            if settle_on_small_spheres(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, v0, v1, v2, vv, tol_abs, tol_rel, warm,
+            if settle_on_small_spheres(pair, k, v0, v1, v2, vv, tol, warm,
                                        work, scratch, fscratch, out):
                 return _done(out, extra, dir_io)
-            if settle_on_feature(kA, mA, fA, iA, kB, mB, fB, iB, R, t, k, tol_abs, tol_rel, warm, work, scratch,
+            if settle_on_feature(pair, k, tol_abs, tol_rel, warm, work, scratch,
                                  fscratch, out):
                 return _done(out, extra, dir_io)
             n = math.sqrt(vv)
-            used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -v0 / n, -v1 / n, -v2 / n, tol_abs,
-                                     tol_rel, max_iter, warm, work, scratch, fscratch, False, out, False, scratch)
+            used = finish_on_patches(pair, (-v0 / n, -v1 / n, -v2 / n), tol, warm, work, scratch, fscratch, False, out,
+                                     False, scratch)
             if used >= 0:
                 return _done(out, used + extra, dir_io)
             if signed:
                 # within about tol_abs of touching the separated certificate gives up (its slab must
                 # be positive), while the small balls' bounds hold for either sign while |sd| < r
-                used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, -v0 / n, -v1 / n, -v2 / n, tol_abs,
-                                         tol_rel, max_iter, warm, work, scratch, fscratch, False, out, True,
-                                         iwork[WARM_SIZE:EPA_IOFF])
+                used = finish_on_patches(pair, (-v0 / n, -v1 / n, -v2 / n), tol, warm, work, scratch, fscratch, False,
+                                         out, True, iwork[WARM_SIZE:EPA_IOFF])
                 if used >= 0:
                     return _done(out, used + extra, dir_io)
             dir_io[0], dir_io[1], dir_io[2] = -v0, -v1, -v2
@@ -932,52 +950,54 @@ def gjk_query(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, 
         if dir_io[0] == 0.0 and dir_io[1] == 0.0 and dir_io[2] == 0.0:
             cold_direction(R, t, centres, dir_io)
         if smooth_pair(kA, fA, kB, fB):
-            used = smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm,
+            used = smooth_finish(pair, tol, dir_io, warm,
                                  work, out)
             if used >= 0:
                 if signed and out[OUT_STATUS] == OVERLAPPING:
                     # the inscribed polytopes overlap: the EPA on the bodies, from their simplex
-                    return signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
+                    return signed_finish(pair, tol,
                                          OVERLAPPING, 4, 0.0, 0.0, used, dir_io, warm, work, iwork, out)
                 return _done(out, used, dir_io)
             extra = -used - 1
-    status, k, v0, v1, v2, vv, lower, it = descend(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
+    status, k, v0, v1, v2, vv, lower, it = descend(pair, tol,
                                                    dir_io, warm, work)
     if signed or status == FAILED:
         # A stalled descent (rounding stops it about 1e-8 of the distance short, next to a boxy
         # superellipsoid's edge or between needle-thin bodies) gets the signed query's rescue either
         # way: the EPA from its simplex settles the side and closes the bounds.
-        status = signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv,
+        status = signed_finish(pair, tol, status, k, vv,
                                lower, it + extra, dir_io, warm, work, iwork, out)
         return status if signed else unsigned_of_signed(out)
     if status == TOUCHING and tol_abs > 0.0:
-        status = certify_overlap(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, warm,
+        status = certify_overlap(pair, tol, warm,
                                  work[PROBE_ROW:PROBE_END], iwork[WARM_SIZE:EPA_IOFF])
-    _finish(status, k, work[12], work[4:8], work[8:12], v0, v1, v2, vv, lower, it + extra, mA, mB,
+    _finish(status, k, (work[12], work[4:8], work[8:12]), (v0, v1, v2), vv, lower, it + extra, mA, mB,
             tol_abs, dir_io, out)
     return int(out[OUT_STATUS])
 
 
 @kernel
-def smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, dir_io, warm, work, out):
+def smooth_finish(pair, tol, dir_io, warm, work, out):
     """Two smooth bodies (see newton_normal.smooth_pair): GJK between their inner polytopes (an
     overlap there is theirs), then Newton's method on the normal from the polytopes' closest
     points. Returns the iterations used (result in out), or -1 - iterations when the plain descent
     has to finish (dir_io then holds the best normal found). The polytopes' simplex is the warm
     start kept in warm (the superellipsoids' own descent has none to keep)."""
-    status, k, v0, v1, v2, vv, lower, it = descend(POLYTOPE, fA[FDATA_SIZE:], iA, POLYTOPE, fB[FDATA_SIZE:], iB, R,
-                                                   t, tol_abs, max(tol_rel, INNER_REL_TOL), max_iter, dir_io, warm,
-                                                   work)
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
+    inner = (POLYTOPE, 0.0, fA[FDATA_SIZE:], iA, POLYTOPE, 0.0, fB[FDATA_SIZE:], iB, R, t)
+    status, k, v0, v1, v2, vv, lower, it = descend(inner, (tol_abs, max(tol_rel, INNER_REL_TOL), max_iter), dir_io,
+                                                   warm, work)
     PA = work[4:8]
     PB = work[8:12]
     lam = work[12]
     if status == OVERLAPPING:
-        _finish(status, k, lam, PA, PB, v0, v1, v2, vv, lower, it, mA, mB, tol_abs, dir_io, out)
+        _finish(status, k, (lam, PA, PB), (v0, v1, v2), vv, lower, it, mA, mB, tol_abs, dir_io, out)
         return it
     upper = math.sqrt(vv)
     if status != SEPARATED or not (upper > tol_abs):
         return -1 - it
-    ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(fA, fB, R, t, -v0 / upper, -v1 / upper, -v2 / upper,
+    ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(fA, fB, R, t, (-v0 / upper, -v1 / upper, -v2 / upper),
                                                               0.0, tol_abs, tol_rel, PA[0], PB[0],
                                                               work[13:DESCENT_ROWS])
     it += evaluations
@@ -986,7 +1006,7 @@ def smooth_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
         return -1 - it
     lam[0] = 1.0
     v0, v1, v2 = PA[0, 0] - PB[0, 0], PA[0, 1] - PB[0, 1], PA[0, 2] - PB[0, 2]
-    _finish(SEPARATED, 1, lam, PA, PB, v0, v1, v2, upper * upper, lower, it, mA, mB, tol_abs, dir_io, out)
+    _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), upper * upper, lower, it, mA, mB, tol_abs, dir_io, out)
     return it
 
 
@@ -1009,7 +1029,7 @@ def _done(out, iterations, dir_io):
 
 
 @kernel
-def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, it, warm,
+def signed_from_hulls(pair, tol, status, k, vv, it, warm,
                       work, iwork, out):
     """Signed result of two bodies of which one at least is an STP-BV, whose underlying hulls'
     descent (k simplex points in work, |v|^2 = vv, ending with ``status``) found the hulls grown by
@@ -1022,8 +1042,11 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
     Otherwise the patches facing along the hulls' normal settle it (finish_on_patches, with the
     small-ball certificate of _certify_overlap) while the overlap is shallower than r; else the EPA
     goes on from the hulls' polytope (its points lie inside the bodies) on the bodies' own supports."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
     ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
     kb, mb, fb, ib = hull_core(kB, mB, fB, iB)
+    hulls = (ka, ma, fa, ia, kb, mb, fb, ib, R, t)
     grow = (ma - mA) + (mb - mB)  # the radii r of the STP sides: the hulls' grown part
     eit = 0
     if status != OVERLAPPING:
@@ -1048,68 +1071,65 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
             saved = iwork[EPA_IOFF:EPA_IOFF + WARM_SIZE]  # the hulls' simplex, for the descent below
             for i in range(WARM_SIZE):
                 saved[i] = warm[i]
-            if _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, dirv[0] / dn, dirv[1] / dn, dirv[2] / dn,
-                               tol_abs, tol_rel, max_iter, warm, work, iwork, out, it):
+            if _patches_settle(pair, dirv[0] / dn, dirv[1] / dn, dirv[2] / dn,
+                               tol, warm, work, iwork, out, it):
                 return int(out[OUT_STATUS])
             for i in range(WARM_SIZE):
                 warm[i] = saved[i]
-        status, k, v0, v1, v2, vv, lower, more = descend(ka, fa, ia, kb, fb, ib, R, t, tol_abs, tol_rel, max_iter,
+        status, k, v0, v1, v2, vv, lower, more = descend(hulls, tol,
                                                          dirv, warm, work)
         eit += more
         if status == SEPARATED:
             d = math.sqrt(vv)
             n0, n1, n2 = -v0 / d, -v1 / d, -v2 / d
             upper = d - grow
-            low = -core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            low = -core_support(pair, n0, n1, n2, warm, work)
             if bounds_closed(upper, low, tol_abs, tol_rel):
                 descent_result(SEPARATED, k, work[12], work[4:8], work[8:12], lower, it + eit, tol_abs, n0, n1, n2,
                                out)
-                return _hulls_settle(mA, mB, ma, mb, n0, n1, n2, upper, low, it + eit, tol_abs, work, out)
+                return _hulls_settle(mA, mB, ma, mb, (n0, n1, n2), upper, low, it + eit, tol_abs, work, out)
             # (the patches were tried above unless the loose search gave no normal)
-            if not patches_tried and _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs,
-                                                     tol_rel, max_iter, warm, work, iwork, out, it + eit):
+            if not patches_tried and _patches_settle(pair, n0, n1, n2, tol, warm, work, iwork, out, it + eit):
                 return int(out[OUT_STATUS])
             # the EPA on the bodies, from their support along the hulls' normal
-            k = _support_simplex(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            k = _support_simplex(pair, n0, n1, n2, warm, work)
     upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
     nv = 0
     if status != SEPARATED and status != FAILED:
-        nv, top, c0, c1, c2, low = epa_start(ka, fa, ia, kb, fb, ib, R, t, 4 if status == OVERLAPPING else k,
-                                             work[0:4], work[4:8], work[8:12], work[20:22], warm, work, iwork, out)
+        nv, top, c0, c1, c2, low = epa_start(hulls, 4 if status == OVERLAPPING else k,
+                                             (work[0:4], work[4:8], work[8:12], work[20:22]), warm, work, iwork, out)
     if nv == 4:
-        outcome, closed, upper, low, more, nv, top = epa_run(ka, fa, ia, kb, fb, ib, R, t, tol_abs, tol_rel,
-                                                             max_iter, nv, top, c0, c1, c2, upper0, low, warm, work,
-                                                             iwork, out)
+        outcome, closed, upper, low, more, nv, top = epa_run(hulls, tol, nv, top, (c0, c1, c2), upper0, low, warm,
+                                                             work, iwork, out)
         eit += more
         if outcome == EPA_RESULT:
             # the hulls' witness points, pushed out by the radii, and their normal
             upper = upper - grow
             n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
-            h = core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            h = core_support(pair, n0, n1, n2, warm, work)
             low = -h
             if bounds_closed(upper, low, tol_abs, tol_rel):
-                return _hulls_settle(mA, mB, ma, mb, n0, n1, n2, upper, low, it + eit, tol_abs, work, out)
+                return _hulls_settle(mA, mB, ma, mb, (n0, n1, n2), upper, low, it + eit, tol_abs, work, out)
             if _small_balls_reach(upper + grow, grow + mA + mB, tol_abs, tol_rel) and _patches_settle(
-                    kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work, iwork,
+                    pair, n0, n1, n2, tol, warm, work, iwork,
                     out, it + eit):
                 return int(out[OUT_STATUS])
             # the EPA goes on with the bodies' supports, from the hulls' polytope (its own bound only:
             # the result's witness points are its face's)
-            outcome, closed, upper, low, more, nv, top = epa_run(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel,
-                                                                 max_iter, nv, top, c0, c1, c2, math.inf, low, warm,
+            outcome, closed, upper, low, more, nv, top = epa_run(pair, tol, nv, top, (c0, c1, c2), math.inf, low, warm,
                                                                  work, iwork, out)
             eit += more
             if outcome == EPA_RESULT:
                 work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CONTINUED
                 out[OUT_ITERATIONS] = it + eit
-                settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out)
+                settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out)
                 add_margins(mA, mB, tol_abs, out)
                 return int(out[OUT_STATUS])
     # the hulls' polytope did not hold the origin: the EPA on the bodies from the descent's simplex
     # (the bodies overlap by more than tol_abs: their grown hulls do)
-    outcome, closed, upper, low, more = epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter,
-                                            4 if status == OVERLAPPING else k, work[0:4], work[4:8], work[8:12],
-                                            work[20:22], math.inf, -math.inf, warm, work, iwork, out)
+    outcome, closed, upper, low, more = epa(pair, tol, 4 if status == OVERLAPPING else k,
+                                            (work[0:4], work[4:8], work[8:12], work[20:22]), math.inf, -math.inf, warm,
+                                            work, iwork, out)
     eit += more
     work[EPA_ROW + EPA_TMP + 1, 3] = HULL_RESTARTED
     if outcome != EPA_RESULT:
@@ -1118,17 +1138,18 @@ def signed_from_hulls(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, ma
         set_result(upper, low, it + eit, tol_abs, out)
         if not closed:
             out[OUT_STATUS] = FAILED
-        supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out)
+        supports_as_witnesses(pair, warm, work, out)
     out[OUT_ITERATIONS] = it + eit
-    settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out)
+    settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out)
     add_margins(mA, mB, tol_abs, out)
     return int(out[OUT_STATUS])
 
 
 @kernel
-def _hulls_settle(mA, mB, ma, mb, n0, n1, n2, upper, low, iterations, tol_abs, work, out):
+def _hulls_settle(mA, mB, ma, mb, n, upper, low, iterations, tol_abs, work, out):
     """The hulls' witness points in out pushed out by the radii along unit n, the bounds (upper, low)
     and the margins: the result of signed_from_hulls settled on the hulls. Returns the status."""
+    n0, n1, n2 = n
     work[EPA_ROW + EPA_TMP + 1, 3] = HULL_SETTLED
     for c in range(3):
         out[OUT_POINT_A + c] += (ma - mA) * (n0, n1, n2)[c]
@@ -1155,11 +1176,13 @@ def _small_balls_reach(hulls_sd, radii, tol_abs, tol_rel):
 
 
 @kernel
-def _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work, iwork,
+def _patches_settle(pair, n0, n1, n2, tol, warm, work, iwork,
                     out, iterations):
     """Whether the patches facing along n settle a signed query (finish_on_patches with the overlap
     certificate); the result, iterations included, is then in out."""
-    used = finish_on_patches(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, tol_rel, max_iter, warm, work,
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
+    used = finish_on_patches(pair, (n0, n1, n2), tol, warm, work,
                              iwork[0:WARM_SIZE], work[DESCENT_ROWS:PROBE_ROW], False, out, True,
                              iwork[WARM_SIZE:EPA_IOFF])
     if used < 0:
@@ -1170,9 +1193,10 @@ def _patches_settle(kA, mA, fA, iA, kB, mB, fB, iB, R, t, n0, n1, n2, tol_abs, t
 
 
 @kernel
-def _support_simplex(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
+def _support_simplex(pair, n0, n1, n2, warm, work):
     """A one-point simplex for the EPA in the descent's rows: the bodies' support along n. Returns 1."""
-    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work[4], work[8], work[16])
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    minkowski_support(pair, n0, n1, n2, warm, work[4], work[8], work[16])
     for c in range(3):
         work[0, c] = work[4, c] - work[8, c]
     work[20, 0] = warm[WARM_FEATURE_A]

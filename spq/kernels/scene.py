@@ -57,13 +57,15 @@ def _sphere_gap(TA, ca, ra, TB, cb, rb):
 
 
 @kernel(hot=True)  # the query's large kernels inlined (spq.kernels.jit): the robot scene's hot loop
-def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre,
-                   slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out):
+def pairs_at_poses(poses, slots, pairs, coherent, prune, scratch, out):
     """Every pair's query at the given slot world poses into out (npairs, OUT_SIZE), world frame.
 
-    coherent: keep each pair's warm start if its relative pose moved little; otherwise cold.
-    prune > 0: skip (status PRUNED, distance inf, lower bound = sphere gap) the pairs whose bounding
-    spheres are more than prune apart."""
+    slots, pairs: the scene's packed bodies and pairs (see :func:`scene_distances`). coherent: keep
+    each pair's warm start if its relative pose moved little; otherwise cold. prune > 0: skip
+    (status PRUNED, distance inf, lower bound = sphere gap) the pairs whose bounding spheres are more
+    than prune apart. scratch: :func:`spq.kernels.batch.query_scratch`'s."""
+    _, _, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre, slot_radius = slots
+    pair_slots, pair_ints, pair_floats = pairs
     for p in range(pair_slots.shape[0]):
         sa = at(pair_slots[p, 0])
         sb = at(pair_slots[p, 1])
@@ -80,27 +82,31 @@ def pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpoo
                 continue
         posed_query(fpool[slot_frange[sa, 0]:slot_frange[sa, 1]], ipool[slot_irange[sa, 0]:slot_irange[sa, 1]],
                     fpool[slot_frange[sb, 0]:slot_frange[sb, 1]], ipool[slot_irange[sb, 0]:slot_irange[sb, 1]],
-                    pair_ints[p], pair_floats[p], TA, TB, coherent, R, t, work, iwork, row)
+                    pair_ints[p], pair_floats[p], TA, TB, coherent, scratch, row)
 
 
 @kernel(nogil=True)  # threads run chunks of the configurations at once (spq.workers)
-def scene_distances(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, base, qs,
-                    slot_link, slot_offset, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool,
-                    slot_centre, slot_radius, pair_slots, pair_ints, pair_floats, coherent, prune, links, poses,
-                    R, t, work, iwork, out):
+def scene_distances(chain, base, qs, slots, pairs, coherent, prune, links, poses, scratch, out):
     """All pairs for each of N joint configurations qs (N, ndof) into out (N, npairs, OUT_SIZE).
+
+    chain: the kinematic tree, (parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier,
+    q_offset) as :func:`spq.kernels.kinematics.forward_kinematics` takes them. slots: the bodies,
+    (slot_link, slot_offset, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool,
+    slot_centre, slot_radius). pairs: (pair_slots, pair_ints, pair_floats), the pairs and their
+    packed queries (spq.kernels.batch).
 
     Forward kinematics from ``base`` (4x4 world pose of the root link), slot poses, then every pair
     (see :func:`pairs_at_poses`); with coherent the warm starts carry from one configuration to the
-    next, as along a trajectory. links (nlinks, 4, 4), poses (nslots, 4, 4), R, t, work, iwork:
-    scratch from the caller (see :func:`spq.kernels.batch.query_scratch`).
+    next, as along a trajectory. links (nlinks, 4, 4), poses (nslots, 4, 4), scratch: scratch from the
+    caller (see :func:`spq.kernels.batch.query_scratch`).
     Joint values are not checked here (the caller validates them)."""
+    parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset = chain
+    slot_link, slot_offset = slots[0], slots[1]
     for i in range(qs.shape[0]):
         forward_kinematics(parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, qs[i], base,
                            links)
         slot_poses(links, slot_link, slot_offset, poses)
-        pairs_at_poses(poses, slot_kind, slot_margin, slot_frange, slot_irange, fpool, ipool, slot_centre, slot_radius,
-                       pair_slots, pair_ints, pair_floats, coherent, prune, R, t, work, iwork, out[i])
+        pairs_at_poses(poses, slots, pairs, coherent, prune, scratch, out[i])
 
 
 def pack_pair_state(slot_kind, slot_margin, slot_centre, pair_slots, tol_abs, tol_rel, max_iter):

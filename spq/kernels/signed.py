@@ -111,11 +111,13 @@ def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
 
 
 @kernel
-def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_iter, status, k, vv, lower, it,
+def signed_finish(pair, tol, status, k, vv, lower, it,
                   dir_io, warm, work, iwork, out):
     """Signed result (A's frame, margins included) from a descent between the cores that ended with
     ``status`` (k simplex points and weights in work, |v|^2 = vv, lower bound ``lower`` on the
     distance, it iterations). dir_io: a direction from A towards B, the normal of last resort."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    tol_abs, tol_rel, max_iter = tol
     lam = work[12]
     PA = work[4:8]
     PB = work[8:12]
@@ -130,8 +132,8 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
         # on too: the polytope settles the side of the boundary the origin is on
         upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
         lower0 = lower if (status != OVERLAPPING and lower > 0.0) else -math.inf
-        outcome, closed, upper, low, eit = epa(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, max_iter, k, work[0:4],
-                                               PA, PB, work[20:22], upper0, lower0, warm, work, iwork, out)
+        outcome, closed, upper, low, eit = epa(pair, tol, k, (work[0:4], PA, PB, work[20:22]), upper0, lower0, warm,
+                                               work, iwork, out)
         if outcome == EPA_RESULT:
             out[OUT_ITERATIONS] = it + eit
         else:
@@ -148,27 +150,28 @@ def signed_finish(kA, mA, fA, iA, kB, mB, fB, iB, R, t, tol_abs, tol_rel, max_it
                 # (a stalled descent between two nearly parallel segments, D flat, may still have
                 # met its bounds: the plane across D bounds sd from below)
                 out[OUT_STATUS] = FAILED
-        settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out)
+        settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out)
     else:
         descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
         if status == FAILED and not lower > 0.0:
             # a descent that proved no separation has lower bound 0 on the distance, which bounds no
             # signed distance; -h_D(n) does, for any unit n (sd = -min over n of h_D(n))
             n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
-            low = -core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work)
+            low = -core_support(pair, n0, n1, n2, warm, work)
             out[OUT_LOWER] = min(low, out[OUT_UPPER])
     add_margins(mA, mB, tol_abs, out)
     return int(out[OUT_STATUS])
 
 
 @kernel
-def settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work, iwork, out):
+def settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out):
     """A failed result between two ball hulls (STP-BVs, spheres: cores, A's frame) settled from their
     sets of centres where those bound sd to the tolerance (spq.kernels.ball_hull_depth); any other
     result stays as it is."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     if out[OUT_STATUS] != FAILED or not (is_ball_hull(kA) and is_ball_hull(kB)):
         return
-    code, low, up, u0, u1, u2, cuts = centre_set_bounds(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work,
+    code, low, up, u0, u1, u2, cuts = centre_set_bounds(pair, tol_abs, tol_rel, warm, work,
                                                         iwork)
     if code != BH_OK:
         return
@@ -177,17 +180,18 @@ def settle_by_centres(kA, fA, iA, kB, fB, iB, R, t, tol_abs, tol_rel, warm, work
     if not bounds_closed(upper, lower, tol_abs, tol_rel):
         return
     out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = u0, u1, u2
-    supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out)
+    supports_as_witnesses(pair, warm, work, out)
     set_result(upper, lower, out[OUT_ITERATIONS] + cuts, tol_abs, out)
 
 
 @kernel
-def core_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, work):
+def core_support(pair, n0, n1, n2, warm, work):
     """h_D(n) of the cores along unit n (A's frame)."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     pa = work[16]
     pb = work[17]
     tmp = work[18]
-    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, pa, pb, tmp)
+    minkowski_support(pair, n0, n1, n2, warm, pa, pb, tmp)
     return n0 * (pa[0] - pb[0]) + n1 * (pa[1] - pb[1]) + n2 * (pa[2] - pb[2])
 
 
@@ -201,8 +205,9 @@ def set_result(upper, lower, iterations, tol_abs, out):
 
 
 @kernel
-def supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out):
+def supports_as_witnesses(pair, warm, work, out):
     """Witness points: the bodies' supports along out's normal n (A's) and -n (B's)."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
     if not (n0 == n0):
         n0, n1, n2 = 1.0, 0.0, 0.0
@@ -210,7 +215,7 @@ def supports_as_witnesses(kA, fA, iA, kB, fB, iB, R, t, warm, work, out):
     pa = work[16]
     pb = work[17]
     tmp = work[18]
-    minkowski_support(kA, fA, iA, kB, fB, iB, R, t, n0, n1, n2, warm, pa, pb, tmp)
+    minkowski_support(pair, n0, n1, n2, warm, pa, pb, tmp)
     for c in range(3):
         out[OUT_POINT_A + c] = pa[c]
         out[OUT_POINT_B + c] = pb[c]
