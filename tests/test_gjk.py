@@ -239,3 +239,42 @@ def test_plain_call_answers_as_a_new_pair_whatever_came_before():
     for k in range(sq.PLAIN_PAIRS + 3):  # the cache stays bounded
         spq.distance(a, b, np.eye(4), poses[1], tol=1e-10 * (1 + k))
     assert len(sq._SCRATCH.pairs) <= sq.PLAIN_PAIRS
+
+
+def test_a_pose_of_any_array_type_gives_the_answer_of_its_plain_copy():
+    """Pair keeps the kernel's machine code for its own argument types and calls it without numba's
+    type dispatch (spq.query._machine_code), which does not check them: every other kind of pose
+    (transposed or sliced views, read-only, float32, Fortran order, lists) must reach it as a plain
+    C float64 copy. The oracle: the same pose as a fresh C float64 array, on a new Pair."""
+    a, b = hull(21), hull(22)
+    pb = pose(rot=Rotation.from_rotvec([0.4, -0.3, 0.2]).as_matrix(), t=(0.45, 0.1, -0.05))
+    readonly = pb.copy()
+    readonly.flags.writeable = False
+    big = np.zeros((8, 8))
+    big[::2, ::2] = pb
+    variants = [pb.T.copy().T, np.asfortranarray(pb), readonly, pb.astype(np.float32), pb.tolist(), big[::2, ::2],
+                np.broadcast_to(pb, (4, 4))]
+    for signed in (False, True):
+        want = spq.Pair(a, b, signed=signed).distance(np.eye(4), np.array(pb, dtype=np.float64, order="C"))
+        f32 = spq.Pair(a, b, signed=signed).distance(np.eye(4), np.array(pb.astype(np.float32), dtype=np.float64))
+        pair = spq.Pair(a, b, signed=signed)
+        pair.cold_distance(np.eye(4), pb)  # the machine code is taken here, for plain arrays
+        for k, v in enumerate(variants):
+            expect = f32 if k == 3 else want
+            got = pair.cold_distance(np.eye(4), v)
+            assert np.array_equal(got._out, expect._out, equal_nan=True), k
+            plain = spq.distance(a, b, v, np.eye(4), signed=signed)  # and as A's pose
+            assert np.isfinite(plain.distance) and plain.status == want.status, k
+
+
+def test_the_plain_call_takes_another_pair_when_an_option_changes():
+    """spq.distance reuses the last pair only for the very same shapes and option objects: a new
+    tolerance, mode or shape gets its own packing (the answers are a new Pair's, bit for bit)."""
+    a, b = hull(23), hull(24)
+    pb = pose(rot=Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix(), t=(0.2, 0.05, 0.0))
+    for kwargs in ({}, {"tol": 1e-3}, {"signed": True}, {"rel_tol": 1e-2, "max_iter": 3}, {}):
+        got = spq.distance(a, b, np.eye(4), pb, **kwargs)
+        new = spq.Pair(a, b, **kwargs).distance(np.eye(4), pb)
+        assert np.array_equal(got._out, new._out, equal_nan=True), kwargs
+    with pytest.raises(ValueError, match="signed must be True or False"):
+        spq.distance(a, b, np.eye(4), pb, signed=1)  # equal to True, but not a bool: the check still runs

@@ -116,10 +116,11 @@ def _to_world(TA, out):
 
 
 @kernel
-def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out, scratch):
+def query_one(fA, iA, fB, iB, ints, floats, TA, TB, coherent, out, scratch):
     """One query with world-frame results in out; warm-start state in ints/floats is updated.
-    R, t, work, iwork: scratch (see :func:`query_scratch`), which the caller keeps: a signed query's
-    polytope needs megabytes, too many to allocate per call.
+    coherent: start from the last query's state if B moved little relative to A, else (and always
+    when False, a cold query) from scratch. scratch: :func:`query_scratch`'s, which the caller keeps:
+    a signed query's polytope needs megabytes, too many to allocate per call.
 
     Returns a POSE_* code (> 0: nothing computed) or POSE_OK."""
     code = check_pose(TA)
@@ -128,7 +129,7 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, out, scratch):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, True, scratch, out)
+    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, scratch, out)
     return POSE_OK
 
 
