@@ -89,20 +89,28 @@ def _residual(a0, a1, a2, h, y0, y1, y2):
     return a0 * y0 + a1 * y1 + a2 * y2 - h, 4.0 * EPS * (ya * (abs(a0) + abs(a1) + abs(a2)) + abs(h))
 
 
+@kernel(inline="always")
+def _corner_system(work, p, q, r):
+    """The planes p, q, r (normals a, b, c and offsets h), then the columns of det U^-1 (b x c, c x a,
+    a x b) and det U, U the matrix of rows a, b, c."""
+    a0, a1, a2, ha = _plane(work, p)
+    b0, b1, b2, hb = _plane(work, q)
+    c0, c1, c2, hc = _plane(work, r)
+    x00, x01, x02 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+    x10, x11, x12 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+    x20, x21, x22 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    det = a0 * x00 + a1 * x01 + a2 * x02
+    return a0, a1, a2, ha, b0, b1, b2, hb, c0, c1, c2, hc, x00, x01, x02, x10, x11, x12, x20, x21, x22, det
+
+
 @kernel
 def _set_vertex(work, iw, v, p, q, r):
     """Vertex slot v := the meeting point of planes p, q, r, with a bound on its error; False if they do
     not meet in one point. Cramer's rule, then two steps of refinement on the residuals: near the
     answer the planes are nearly parallel (det about 1e-9), where Cramer's point alone misses its own
     planes by about eps / det."""
-    a0, a1, a2, ha = _plane(work, p)
-    b0, b1, b2, hb = _plane(work, q)
-    c0, c1, c2, hc = _plane(work, r)
-    # the columns of det U^-1: b x c, c x a, a x b
-    x00, x01, x02 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
-    x10, x11, x12 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
-    x20, x21, x22 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
-    det = a0 * x00 + a1 * x01 + a2 * x02
+    (a0, a1, a2, ha, b0, b1, b2, hb, c0, c1, c2, hc,
+     x00, x01, x02, x10, x11, x12, x20, x21, x22, det) = _corner_system(work, p, q, r)
     if not abs(det) > 16.0 * EPS:
         return False
     y0 = (ha * x00 + hb * x10 + hc * x20) / det
@@ -139,13 +147,8 @@ def _error_along(work, iw, v, d0, d1, d2):
     """A bound on |d.(x* - x)| for vertex v (x computed, x* exact) and unit d: from the residuals of
     its planes where d is well inside their span, else its error bound E."""
     k = EPA_IOFF + EPA_CORNERS + 3 * v
-    a0, a1, a2, ha = _plane(work, iw[k])
-    b0, b1, b2, hb = _plane(work, iw[k + 1])
-    c0, c1, c2, hc = _plane(work, iw[k + 2])
-    x00, x01, x02 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
-    x10, x11, x12 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
-    x20, x21, x22 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
-    det = a0 * x00 + a1 * x01 + a2 * x02
+    (a0, a1, a2, ha, b0, b1, b2, hb, c0, c1, c2, hc,
+     x00, x01, x02, x10, x11, x12, x20, x21, x22, det) = _corner_system(work, iw[k], iw[k + 1], iw[k + 2])
     row = EPA_ROW + EPA_PA + v
     y0, y1, y2, err = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
     if not abs(det) > 16.0 * EPS:
