@@ -245,7 +245,8 @@ def test_a_pose_of_any_array_type_gives_the_answer_of_its_plain_copy():
     """Pair keeps the kernel's machine code for its own argument types and calls it without numba's
     type dispatch (spq.query._machine_code), which does not check them: every other kind of pose
     (transposed or sliced views, read-only, float32, Fortran order, lists) must reach it as a plain
-    C float64 copy. The oracle: the same pose as a fresh C float64 array, on a new Pair."""
+    C float64 copy. The oracle: the same pose as a fresh C float64 array, on a new Pair, and the exact
+    reference's distance within the bounds."""
     a, b = hull(21), hull(22)
     pb = pose(rot=Rotation.from_rotvec([0.4, -0.3, 0.2]).as_matrix(), t=(0.45, 0.1, -0.05))
     readonly = pb.copy()
@@ -254,8 +255,10 @@ def test_a_pose_of_any_array_type_gives_the_answer_of_its_plain_copy():
     big[::2, ::2] = pb
     variants = [pb.T.copy().T, np.asfortranarray(pb), readonly, pb.astype(np.float32), pb.tolist(), big[::2, ::2],
                 np.broadcast_to(pb, (4, 4))]
+    exact = reference_distance(a, b, np.eye(4), pb).signed_distance  # independent of spq's kernels
     for signed in (False, True):
         want = spq.Pair(a, b, signed=signed).distance(np.eye(4), np.array(pb, dtype=np.float64, order="C"))
+        assert want.lower_bound - 1e-9 <= (exact if signed else max(exact, 0.0)) <= want.upper_bound + 1e-9
         f32 = spq.Pair(a, b, signed=signed).distance(np.eye(4), np.array(pb.astype(np.float32), dtype=np.float64))
         pair = spq.Pair(a, b, signed=signed)
         pair.cold_distance(np.eye(4), pb)  # the machine code is taken here, for plain arrays
@@ -263,8 +266,9 @@ def test_a_pose_of_any_array_type_gives_the_answer_of_its_plain_copy():
             expect = f32 if k == 3 else want
             got = pair.cold_distance(np.eye(4), v)
             assert np.array_equal(got._out, expect._out, equal_nan=True), k
-            plain = spq.distance(a, b, v, np.eye(4), signed=signed)  # and as A's pose
-            assert np.isfinite(plain.distance) and plain.status == want.status, k
+            plain = spq.distance(a, b, v, np.eye(4), signed=signed)  # and as A's pose, on the plain call
+            copy = spq.Pair(a, b, signed=signed).distance(np.array(v, dtype=np.float64, order="C"), np.eye(4))
+            assert np.array_equal(plain._out, copy._out, equal_nan=True), k
 
 
 def test_the_plain_call_takes_another_pair_when_an_option_changes():
@@ -272,9 +276,13 @@ def test_the_plain_call_takes_another_pair_when_an_option_changes():
     tolerance, mode or shape gets its own packing (the answers are a new Pair's, bit for bit)."""
     a, b = hull(23), hull(24)
     pb = pose(rot=Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix(), t=(0.2, 0.05, 0.0))
+    exact = reference_distance(a, b, np.eye(4), pb).signed_distance  # independent of spq's kernels
     for kwargs in ({}, {"tol": 1e-3}, {"signed": True}, {"rel_tol": 1e-2, "max_iter": 3}, {}):
         got = spq.distance(a, b, np.eye(4), pb, **kwargs)
         new = spq.Pair(a, b, **kwargs).distance(np.eye(4), pb)
         assert np.array_equal(got._out, new._out, equal_nan=True), kwargs
+        # bounds hold the exact value whatever the options (max_iter=3 may stop early, with looser bounds)
+        value = exact if kwargs.get("signed") else max(exact, 0.0)
+        assert got.lower_bound - 1e-9 <= value <= got.upper_bound + 1e-9, kwargs
     with pytest.raises(ValueError, match="signed must be True or False"):
         spq.distance(a, b, np.eye(4), pb, signed=1)  # equal to True, but not a bool: the check still runs
