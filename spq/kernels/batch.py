@@ -145,7 +145,7 @@ def query_batch(fA, iA, fB, iB, ints, floats, poses_a, poses_b, coherent, out, s
     """Queries for N pose pairs into out (N, OUT_SIZE). poses_a/poses_b: (N or 1, 4, 4), broadcast.
 
     coherent: carry the warm start (features, direction) from each query to the next, as along a
-    trajectory; otherwise every query starts cold. R, t, work, iwork: scratch from
+    trajectory; otherwise every query starts cold. scratch: (R, t, work, iwork) from
     :func:`query_scratch`. Returns -1 if every pose is valid, else the index of the first bad pose
     times 100 plus its POSE_* code (+10 for B); nothing is computed then.
     """
@@ -170,7 +170,7 @@ def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, scratch, row):
     """One query of a packed pair (ints, floats rows) at world poses TA, TB into row, world frame.
 
     coherent: keep the pair's warm start if B moved little relative to A; otherwise start cold.
-    R, t, work, iwork: scratch (see :func:`query_scratch`)."""
+    scratch: (R, t, work, iwork) from :func:`query_scratch`."""
     R, t, work, iwork = scratch
     warm = ints[I_WARM:I_WARM + WARM_SIZE]
     d = floats[F_DIR:F_DIR + 3]
