@@ -148,18 +148,19 @@ def _raise_pose_error(code: int, index: int | None = None) -> None:
 
 
 _F64 = np.dtype(np.float64)
+_SHAPE = (4, 4)
 
 
 _SCRATCH = threading.local()
 
 
-def _thread_scratch() -> tuple:
-    """This thread's scratch for one query (kb.query_scratch), made once: a call then allocates only
-    its result."""
-    scratch = getattr(_SCRATCH, "arrays", None)
-    if scratch is None:
-        scratch = _SCRATCH.arrays = kb.query_scratch()
-    return scratch
+def _thread_work() -> tuple:
+    """This thread's (work, iwork) for one query (kb.query_scratch's), made once: a call then
+    allocates only its result."""
+    work = getattr(_SCRATCH, "work", None)
+    if work is None:
+        work = _SCRATCH.work = kb.query_scratch()[2:]
+    return work
 
 
 def _as_matrix(pose) -> np.ndarray:
@@ -207,9 +208,12 @@ class Pair:
                  max_iter: int = DEFAULT_MAX_ITER, signed: bool = False):
         self.A, self.B = A, B
         self.signed = check_signed(signed)
-        self._ints, self._floats = _pack(A, B, tol, rel_tol, max_iter, signed)
+        self._ints, floats = _pack(A, B, tol, rel_tol, max_iter, signed)
         ka, kb_ = A.kernel_data(), B.kernel_data()
         self._fa, self._ia, self._fb, self._ib = ka.fdata, ka.idata, kb_.fdata, kb_.idata
+        # one call's arrays: the shapes copied after the packed floats, which both paths share
+        self._fbuf, self._ibuf = kb.pair_buffers(floats, self._fa, self._ia, self._fb, self._ib)
+        self._floats = self._fbuf[:kb.FLOATS_SIZE]
         self._query_one = None  # kb.query_one's machine code for this pair, after the first call
 
     def reset(self) -> None:
@@ -227,14 +231,18 @@ class Pair:
         return self._one(pose_a, pose_b, False)
 
     def _one(self, pose_a, pose_b, coherent: bool) -> DistanceResult:
+        # _as_matrix's test inlined: a plain call spends about 0.1 us on each function call here
+        if not (type(pose_a) is np.ndarray and pose_a.dtype is _F64 and pose_a.shape == _SHAPE and pose_a.flags.carray):
+            pose_a = _as_matrix(pose_a)
+        if not (type(pose_b) is np.ndarray and pose_b.dtype is _F64 and pose_b.shape == _SHAPE and pose_b.flags.carray):
+            pose_b = _as_matrix(pose_b)
         out = np.empty(OUT_SIZE)
+        work, iwork = _thread_work()
         query = self._query_one
         if query is not None:
-            code = query(self._fa, self._ia, self._fb, self._ib, self._ints, self._floats, _as_matrix(pose_a),
-                         _as_matrix(pose_b), coherent, out, _thread_scratch())
+            code = query(self._fbuf, self._ibuf, self._ints, pose_a, pose_b, coherent, out, work, iwork)
         else:  # the first call: numba compiles the kernel (or loads it), and its machine code is kept
-            args = (self._fa, self._ia, self._fb, self._ib, self._ints, self._floats, _as_matrix(pose_a),
-                    _as_matrix(pose_b), coherent, out, _thread_scratch())
+            args = (self._fbuf, self._ibuf, self._ints, pose_a, pose_b, coherent, out, work, iwork)
             code = kb.query_one(*args)
             self._query_one = _machine_code(kb.query_one, args)
         if code:
@@ -291,10 +299,14 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
     32 * max_iter EPA expansions, at most 4072) returns status 'failed' with the bounds reached.
     Raises ValueError for bad poses or tolerances.
     """
+    last = getattr(_SCRATCH, "last", None)  # a loop over poses asks for the same pair, with the same objects
+    if last is not None and last[0] is A and last[1] is B and last[2] is tol and last[3] is rel_tol \
+            and last[4] is max_iter and last[5] is signed:  # then B is a Shape: the new order
+        return last[6]._one(pose_a, pose_b, False)
     if isinstance(pose_a, Shape) and not isinstance(B, Shape):  # the old order: (A, pose_a, B, pose_b)
         _warn_old_order()
         B, pose_a = pose_a, B
-    return _plain_pair(A, B, tol, rel_tol, max_iter, signed).cold_distance(pose_a, pose_b)
+    return _plain_pair(A, B, tol, rel_tol, max_iter, signed)._one(pose_a, pose_b, False)
 
 
 PLAIN_PAIRS = 32  # shape pairs (with their options) whose packing each thread keeps for distance()
@@ -304,10 +316,6 @@ def _plain_pair(A: Shape, B: Shape, tol, rel_tol, max_iter, signed) -> "Pair":
     """The Pair a plain distance() call runs on (cold, see Pair.cold_distance): packed once per shape
     pair and options and kept per thread, as a loop over poses would otherwise spend half its time
     packing. The cache holds the last PLAIN_PAIRS pairs, and the shapes with them."""
-    last = getattr(_SCRATCH, "last", None)  # a loop over poses asks for the same pair, with the same objects
-    if last is not None and last[0] is A and last[1] is B and last[2] is tol and last[3] is rel_tol \
-            and last[4] is max_iter and last[5] is signed:
-        return last[6]
     cache = getattr(_SCRATCH, "pairs", None)
     if cache is None:
         cache = _SCRATCH.pairs = {}

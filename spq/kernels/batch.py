@@ -115,12 +115,30 @@ def _to_world(TA, out):
         out[OUT_NORMAL + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z
 
 
+# A Pair's own arrays for query_one, two instead of eight (each argument numba unboxes costs about
+# 0.1 us of a 3 us call): fbuf = [floats (FLOATS_SIZE), R (9), t (3), fA, fB] and
+# ibuf = [start of iB, start of fB in fbuf, iA, iB] (int32, the shapes' idata type).
+PAIR_F_R = FLOATS_SIZE
+PAIR_F_T = PAIR_F_R + 9
+PAIR_F_SHAPES = PAIR_F_T + 3
+PAIR_I_SHAPES = 2
+
+
+def pair_buffers(floats, fA, iA, fB, iB) -> tuple[np.ndarray, np.ndarray]:
+    """(fbuf, ibuf) of a pair for :func:`query_one`: copies of its packed floats and both shapes'
+    arrays, laid out as PAIR_* says (the caller keeps ``fbuf[:FLOATS_SIZE]`` as its floats)."""
+    fbuf = np.concatenate((floats, np.zeros(12), fA, fB))
+    ibuf = np.concatenate((np.array([PAIR_I_SHAPES + len(iA), PAIR_F_SHAPES + len(fA)], dtype=iA.dtype), iA, iB))
+    return fbuf, ibuf
+
+
 @kernel
-def query_one(fA, iA, fB, iB, ints, floats, TA, TB, coherent, out, scratch):
-    """One query with world-frame results in out; warm-start state in ints/floats is updated.
-    coherent: start from the last query's state if B moved little relative to A, else (and always
-    when False, a cold query) from scratch. scratch: :func:`query_scratch`'s, which the caller keeps:
-    a signed query's polytope needs megabytes, too many to allocate per call.
+def query_one(fbuf, ibuf, ints, TA, TB, coherent, out, work, iwork):
+    """One query with world-frame results in out; warm-start state in ints and fbuf's floats is
+    updated. fbuf, ibuf: :func:`pair_buffers`'. coherent: start from the last query's state if B
+    moved little relative to A, else (and always when False, a cold query) from scratch. work,
+    iwork: :func:`query_scratch`'s, which the caller keeps: a signed query's polytope needs
+    megabytes, too many to allocate per call.
 
     Returns a POSE_* code (> 0: nothing computed) or POSE_OK."""
     code = check_pose(TA)
@@ -129,7 +147,10 @@ def query_one(fA, iA, fB, iB, ints, floats, TA, TB, coherent, out, scratch):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, scratch, out)
+    split_i, split_f = ibuf[0], ibuf[1]
+    scratch = (fbuf[PAIR_F_R:PAIR_F_T].reshape((3, 3)), fbuf[PAIR_F_T:PAIR_F_SHAPES], work, iwork)
+    posed_query(fbuf[PAIR_F_SHAPES:split_f], ibuf[PAIR_I_SHAPES:split_i], fbuf[split_f:], ibuf[split_i:], ints,
+                fbuf[:FLOATS_SIZE], TA, TB, coherent, scratch, out)
     return POSE_OK
 
 
