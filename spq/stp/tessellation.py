@@ -28,7 +28,6 @@ import math
 
 import numpy as np
 
-from spq.stp.topology import NO_FACE
 from spq.tessellation import LATTICE_COVER, fibonacci_directions, unit
 
 PATCH_SHARE = 0.5  # share of the tolerance the patch grids aim at (the rest: the certificate's 1/cos factor)
