@@ -289,8 +289,8 @@ def test_the_plain_call_takes_another_pair_when_an_option_changes():
 
 
 def test_per_call_and_batched_agree_bit_for_bit_on_every_kind():
-    """The per-call kernel reads a Pair's own copies of both shapes and its state, laid out in two
-    buffers (spq.kernels.batch.pair_buffers); the batched kernel reads the shapes' arrays themselves.
+    """The per-call kernel reads a Pair's own copies of both shapes and its state, laid out in one
+    array (spq.kernels.batch.pair_buffer); the batched kernel reads the shapes' arrays themselves.
     Every kind against every kind, unsigned and signed, cold and along a path: the same answers, bit
     for bit, and the exact reference's distance within the bounds on the polytopes."""
     rng = np.random.default_rng(11)

@@ -26,6 +26,7 @@ from spq.kernels.gjk import (
     WORK_ROWS,
     clear_warm,
 )
+from spq.kernels.kinds import IDATA_DTYPE
 from spq.kernels.query import gjk_query
 
 POSE_OK = 0
@@ -115,30 +116,49 @@ def _to_world(TA, out):
         out[OUT_NORMAL + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z
 
 
-# A Pair's own arrays for query_one, two instead of eight (each argument numba unboxes costs about
-# 0.1 us of a 3 us call): fbuf = [floats (FLOATS_SIZE), R (9), t (3), fA, fB] and
-# ibuf = [start of iB, start of fB in fbuf, iA, iB] (int32, the shapes' idata type).
-PAIR_F_R = FLOATS_SIZE
-PAIR_F_T = PAIR_F_R + 9
-PAIR_F_SHAPES = PAIR_F_T + 3
-PAIR_I_SHAPES = 2
+# A Pair's own array for query_one, one argument instead of eight (each array numba unboxes costs
+# about 0.1 us of a 3 us call), float64 slots: [floats (FLOATS_SIZE), R (9), t (3), ints (INTS_SIZE,
+# read as int64), head (4 int64: start of fB, start of the int32s, len(iA), len(iB)), fA, fB, then
+# iA and iB as int32s two to a slot].
+PAIR_R = FLOATS_SIZE
+PAIR_T = PAIR_R + 9
+PAIR_INTS = PAIR_T + 3
+PAIR_HEAD = PAIR_INTS + INTS_SIZE
+PAIR_SHAPES = PAIR_HEAD + 4
 
 
-def pair_buffers(floats, fA, iA, fB, iB) -> tuple[np.ndarray, np.ndarray]:
-    """(fbuf, ibuf) of a pair for :func:`query_one`: copies of its packed floats and both shapes'
-    arrays, laid out as PAIR_* says (the caller keeps ``fbuf[:FLOATS_SIZE]`` as its floats)."""
-    fbuf = np.concatenate((floats, np.zeros(12), fA, fB))
-    ibuf = np.concatenate((np.array([PAIR_I_SHAPES + len(iA), PAIR_F_SHAPES + len(fA)], dtype=iA.dtype), iA, iB))
-    return fbuf, ibuf
+def pair_buffer(floats, ints, fA, iA, fB, iB) -> np.ndarray:
+    """A pair's array for :func:`query_one`: its packed floats and ints and copies of both shapes'
+    arrays, laid out as PAIR_* says. The caller keeps ``buf[:FLOATS_SIZE]`` as its floats and
+    ``pair_ints(buf)`` as its ints, so that both entry points share the warm start."""
+    if iA.dtype != IDATA_DTYPE or iB.dtype != IDATA_DTYPE:
+        raise ValueError(f"shape idata must be {np.dtype(IDATA_DTYPE).name}; got {iA.dtype} and {iB.dtype}")
+    start_fb = PAIR_SHAPES + len(fA)
+    start_i = start_fb + len(fB)
+    n_i = len(iA) + len(iB)
+    buf = np.zeros(start_i + (n_i + 1) // 2)
+    buf[:FLOATS_SIZE] = floats
+    pair_ints(buf)[:] = ints
+    buf[PAIR_HEAD:PAIR_SHAPES].view(np.int64)[:] = (start_fb, start_i, len(iA), len(iB))
+    buf[PAIR_SHAPES:start_fb] = fA
+    buf[start_fb:start_i] = fB
+    idata = buf[start_i:].view(IDATA_DTYPE)
+    idata[:len(iA)] = iA
+    idata[len(iA):n_i] = iB
+    return buf
+
+
+def pair_ints(buf):
+    """The int64 view of a pair_buffer's ints."""
+    return buf[PAIR_INTS:PAIR_HEAD].view(np.int64)
 
 
 @kernel
-def query_one(fbuf, ibuf, ints, TA, TB, coherent, out, work, iwork):
-    """One query with world-frame results in out; warm-start state in ints and fbuf's floats is
-    updated. fbuf, ibuf: :func:`pair_buffers`'. coherent: start from the last query's state if B
-    moved little relative to A, else (and always when False, a cold query) from scratch. work,
-    iwork: :func:`query_scratch`'s, which the caller keeps: a signed query's polytope needs
-    megabytes, too many to allocate per call.
+def query_one(buf, TA, TB, coherent, out, wbuf):
+    """One query with world-frame results in out; warm-start state in buf is updated. buf:
+    :func:`pair_buffer`'s. coherent: start from the last query's state if B moved little relative
+    to A, else (and always when False, a cold query) from scratch. wbuf: :func:`query_work`'s, which
+    the caller keeps: a signed query's polytope needs megabytes, too many to allocate per call.
 
     Returns a POSE_* code (> 0: nothing computed) or POSE_OK."""
     code = check_pose(TA)
@@ -147,11 +167,20 @@ def query_one(fbuf, ibuf, ints, TA, TB, coherent, out, work, iwork):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    split_i, split_f = ibuf[0], ibuf[1]
-    scratch = (fbuf[PAIR_F_R:PAIR_F_T].reshape((3, 3)), fbuf[PAIR_F_T:PAIR_F_SHAPES], work, iwork)
-    posed_query(fbuf[PAIR_F_SHAPES:split_f], ibuf[PAIR_I_SHAPES:split_i], fbuf[split_f:], ibuf[split_i:], ints,
-                fbuf[:FLOATS_SIZE], TA, TB, coherent, scratch, out)
+    head = buf[PAIR_HEAD:PAIR_SHAPES].view(np.int64)
+    start_fb, start_i, n_ia, n_ib = head[0], head[1], head[2], head[3]
+    idata = buf[start_i:].view(IDATA_DTYPE)
+    scratch = (buf[PAIR_R:PAIR_T].reshape((3, 3)), buf[PAIR_T:PAIR_INTS], wbuf[:WORK_ROWS * 4].reshape((WORK_ROWS, 4)),
+               wbuf[WORK_ROWS * 4:].view(np.int64))
+    posed_query(buf[PAIR_SHAPES:start_fb], idata[:n_ia], buf[start_fb:start_i], idata[n_ia:n_ia + n_ib],
+                buf[PAIR_INTS:PAIR_HEAD].view(np.int64), buf[:FLOATS_SIZE], TA, TB, coherent, scratch, out)
     return POSE_OK
+
+
+def query_work() -> np.ndarray:
+    """A thread's scratch for :func:`query_one`, one float64 array: work (WORK_ROWS, 4), then iwork
+    (IWORK_SIZE,) read as int64."""
+    return np.empty(WORK_ROWS * 4 + IWORK_SIZE)
 
 
 def query_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
