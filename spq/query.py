@@ -211,9 +211,10 @@ class Pair:
         ints, floats = _pack(A, B, tol, rel_tol, max_iter, signed)
         ka, kb_ = A.kernel_data(), B.kernel_data()
         self._fa, self._ia, self._fb, self._ib = ka.fdata, ka.idata, kb_.fdata, kb_.idata
-        # one call's array: the packed state and copies of the shapes; both paths share the state
-        self._buf = kb.pair_buffer(floats, ints, self._fa, self._ia, self._fb, self._ib)
-        self._floats, self._ints = self._buf[:kb.FLOATS_SIZE], kb.pair_ints(self._buf)
+        # one call's arrays: the state, which both entry points share, and each shape's packed array
+        self._state = kb.pair_state(floats, ints)
+        self._floats, self._ints = self._state[:kb.FLOATS_SIZE], kb.pair_ints(self._state)
+        self._packed_a, self._packed_b = ka.packed, kb_.packed
         self._query_one = None  # kb.query_one's machine code for this pair, after the first call
 
     def reset(self) -> None:
@@ -240,9 +241,9 @@ class Pair:
         work = _thread_work()
         query = self._query_one
         if query is not None:
-            code = query(self._buf, pose_a, pose_b, coherent, out, work)
+            code = query(self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, work)
         else:  # the first call: numba compiles the kernel (or loads it), and its machine code is kept
-            args = (self._buf, pose_a, pose_b, coherent, out, work)
+            args = (self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, work)
             code = kb.query_one(*args)
             self._query_one = _machine_code(kb.query_one, args)
         if code:
@@ -310,7 +311,7 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
                 and pose_a.flags.carray and type(pose_b) is np.ndarray and pose_b.dtype is _F64 \
                 and pose_b.shape == _SHAPE and pose_b.flags.carray:
             out = np.empty(OUT_SIZE)
-            code = query(pair._buf, pose_a, pose_b, False, out, last[7])
+            code = query(pair._state, pair._packed_a, pair._packed_b, pose_a, pose_b, False, out, last[7])
             if code:
                 _raise_pose_error(code)
             return DistanceResult(out)

@@ -289,10 +289,10 @@ def test_the_plain_call_takes_another_pair_when_an_option_changes():
 
 
 def test_per_call_and_batched_agree_bit_for_bit_on_every_kind():
-    """The per-call kernel reads a Pair's own copies of both shapes and its state, laid out in one
-    array (spq.kernels.batch.pair_buffer); the batched kernel reads the shapes' arrays themselves.
-    Every kind against every kind, unsigned and signed, cold and along a path: the same answers, bit
-    for bit, and the exact reference's distance within the bounds on the polytopes."""
+    """The per-call kernel reads each shape from its packed array (KernelData.packed, spq.kernels.
+    kinds.pack_shape) and the Pair's state from one array; the batched kernel reads the shapes' fdata
+    and idata. Every kind against every kind, unsigned and signed, cold and along a path: the same
+    answers, bit for bit, and the exact reference's distance within the bounds on the polytopes."""
     rng = np.random.default_rng(11)
     pts = rng.normal(size=(25, 3)) * 0.15
     shapes = {"box": spq.Box(0.05, 0.1, 0.15), "sphere": spq.Sphere(0.1), "capsule": spq.Capsule(0.05, 0.15),
@@ -313,7 +313,33 @@ def test_per_call_and_batched_agree_bit_for_bit_on_every_kind():
                     assert one.distance == cold.distance[i] and np.array_equal(one.point_a, cold.point_a[i],
                                                                                equal_nan=True), where
                     assert step.distance == path.distance[i] and step.iterations == path.iterations[i], where
+                    assert np.array_equal(step.normal, path.normal[i], equal_nan=True), where
                     if a_name == b_name == "pch":
                         exact = reference_distance(A, B, pa[i], pb[i]).signed_distance
                         value = exact if signed else max(exact, 0.0)
                         assert one.lower_bound - 1e-9 <= value <= one.upper_bound + 1e-9, where
+
+
+def test_a_shapes_arrays_are_views_of_its_packed_array():
+    """A shape's fdata and idata are views of its packed array, which the per-call kernel reads: a
+    change to one (an STP-BV's support method, set in idata) reaches a Pair made before it, whose
+    answers then equal a new Pair's; and a packed array holds what was given, whatever its length."""
+    from spq.kernels.kinds import pack_shape
+    for nf, ni in ((0, 0), (1, 1), (5, 2), (4, 7)):
+        f, i = np.arange(nf) * 0.5, np.arange(ni, dtype=np.int32) - 3
+        packed, fv, iv = pack_shape(f, i)
+        assert np.array_equal(fv, f) and np.array_equal(iv, i) and iv.dtype == np.int32
+        assert (nf == 0 or np.shares_memory(packed, fv)) and (ni == 0 or np.shares_memory(packed, iv))
+    pts = np.random.default_rng(5).normal(size=(40, 3)) * 0.1
+    stp = spq.STPBV.from_points(pts, 0.01, 1.0)
+    kd = stp.kernel_data()
+    assert np.shares_memory(kd.packed, kd.fdata) and np.shares_memory(kd.packed, kd.idata)
+    pb = pose(rot=Rotation.from_rotvec([0.3, 0.1, -0.2]).as_matrix(), t=(0.3, 0.05, 0.1))
+    old = spq.Pair(stp, stp)
+    before = old.cold_distance(np.eye(4), pb)
+    for method in ("naive", "march", "hull"):
+        stp.method = method
+        got = old.cold_distance(np.eye(4), pb)
+        new = spq.Pair(stp, stp).cold_distance(np.eye(4), pb)
+        assert np.array_equal(got._out, new._out, equal_nan=True), method
+        assert abs(got.distance - before.distance) <= 1e-9, method  # every method gives the distance

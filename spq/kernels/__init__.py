@@ -9,9 +9,9 @@ arguments: the machine code and the results are the same):
   ``Shape.kernel_data``); R (3, 3) and t (3,) map B's frame into A's.
 - ``tol``: ``(tol_abs, tol_rel, max_iter)``, the stopping rule (m, m/m, iterations).
 - ``scratch``: ``(R, t, work, iwork)`` from :func:`spq.kernels.batch.query_scratch`, a thread's own.
-- a Pair's ``buf`` (:func:`spq.kernels.batch.pair_buffer`): its packed state and both shapes in one
-  array, and a thread's ``wbuf`` (:func:`spq.kernels.batch.query_work`), for the per-call entry
-  point, where each argument costs time to unbox.
+- the per-call entry point, where each argument costs time to unbox, takes a Pair's ``state``
+  (:func:`spq.kernels.batch.pair_state`), each shape's ``packed`` array (its fdata and idata in one,
+  spq.kernels.kinds.pack_shape) and a thread's ``wbuf`` (:func:`spq.kernels.batch.query_work`).
 - a robot scene's ``chain`` (the kinematic tree), ``slots`` (its bodies) and ``pairs`` (their
   queries), as :func:`spq.kernels.scene.scene_distances` describes them.
 - a 3-vector that a kernel takes as a whole (a normal ``n``, a centre ``c``) is a tuple of floats.

@@ -26,7 +26,7 @@ from spq.kernels.gjk import (
     WORK_ROWS,
     clear_warm,
 )
-from spq.kernels.kinds import IDATA_DTYPE
+from spq.kernels.kinds import IDATA_DTYPE, SHAPE_HEAD
 from spq.kernels.query import gjk_query
 
 POSE_OK = 0
@@ -116,49 +116,45 @@ def _to_world(TA, out):
         out[OUT_NORMAL + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z
 
 
-# A Pair's own array for query_one, one argument instead of eight (each array numba unboxes costs
-# about 0.1 us of a 3 us call), float64 slots: [floats (FLOATS_SIZE), R (9), t (3), ints (INTS_SIZE,
-# read as int64), head (4 int64: start of fB, start of the int32s, len(iA), len(iB)), fA, fB, then
-# iA and iB as int32s two to a slot].
+# A Pair's state for query_one in one array, float64 slots: [floats (FLOATS_SIZE), R (9), t (3),
+# ints (INTS_SIZE, read as int64)]; each shape comes as its packed array (kinds.pack_shape). Each
+# array numba unboxes costs about 0.1 us of a 3 us call: three instead of eight.
 PAIR_R = FLOATS_SIZE
 PAIR_T = PAIR_R + 9
 PAIR_INTS = PAIR_T + 3
-PAIR_HEAD = PAIR_INTS + INTS_SIZE
-PAIR_SHAPES = PAIR_HEAD + 4
+PAIR_SIZE = PAIR_INTS + INTS_SIZE
 
 
-def pair_buffer(floats, ints, fA, iA, fB, iB) -> np.ndarray:
-    """A pair's array for :func:`query_one`: its packed floats and ints and copies of both shapes'
-    arrays, laid out as PAIR_* says. The caller keeps ``buf[:FLOATS_SIZE]`` as its floats and
-    ``pair_ints(buf)`` as its ints, so that both entry points share the warm start."""
-    if iA.dtype != IDATA_DTYPE or iB.dtype != IDATA_DTYPE:
-        raise ValueError(f"shape idata must be {np.dtype(IDATA_DTYPE).name}; got {iA.dtype} and {iB.dtype}")
-    start_fb = PAIR_SHAPES + len(fA)
-    start_i = start_fb + len(fB)
-    n_i = len(iA) + len(iB)
-    buf = np.zeros(start_i + (n_i + 1) // 2)
-    buf[:FLOATS_SIZE] = floats
-    pair_ints(buf)[:] = ints
-    buf[PAIR_HEAD:PAIR_SHAPES].view(np.int64)[:] = (start_fb, start_i, len(iA), len(iB))
-    buf[PAIR_SHAPES:start_fb] = fA
-    buf[start_fb:start_i] = fB
-    idata = buf[start_i:].view(IDATA_DTYPE)
-    idata[:len(iA)] = iA
-    idata[len(iA):n_i] = iB
-    return buf
+def pair_state(floats, ints) -> np.ndarray:
+    """A pair's state for :func:`query_one`, laid out as PAIR_* says. The caller keeps
+    ``state[:FLOATS_SIZE]`` as its floats and ``pair_ints(state)`` as its ints, so that both entry
+    points share the warm start."""
+    state = np.zeros(PAIR_SIZE)
+    state[:FLOATS_SIZE] = floats
+    pair_ints(state)[:] = ints
+    return state
 
 
-def pair_ints(buf):
-    """The int64 view of a pair_buffer's ints."""
-    return buf[PAIR_INTS:PAIR_HEAD].view(np.int64)
+def pair_ints(state):
+    """The int64 view of a pair_state's ints."""
+    return state[PAIR_INTS:PAIR_SIZE].view(np.int64)
+
+
+@kernel(inline="always")
+def unpack_shape(packed):
+    """(fdata, idata) of a packed shape (kinds.pack_shape), as views."""
+    head = packed[:SHAPE_HEAD].view(np.int64)
+    nf, ni = head[0], head[1]
+    return packed[SHAPE_HEAD:SHAPE_HEAD + nf], packed[SHAPE_HEAD + nf:].view(IDATA_DTYPE)[:ni]
 
 
 @kernel
-def query_one(buf, TA, TB, coherent, out, wbuf):
-    """One query with world-frame results in out; warm-start state in buf is updated. buf:
-    :func:`pair_buffer`'s. coherent: start from the last query's state if B moved little relative
-    to A, else (and always when False, a cold query) from scratch. wbuf: :func:`query_work`'s, which
-    the caller keeps: a signed query's polytope needs megabytes, too many to allocate per call.
+def query_one(state, packed_a, packed_b, TA, TB, coherent, out, wbuf):
+    """One query with world-frame results in out; warm-start state in state is updated. state:
+    :func:`pair_state`'s; packed_a, packed_b: the shapes' ``KernelData.packed``. coherent: start from
+    the last query's state if B moved little relative to A, else (and always when False, a cold
+    query) from scratch. wbuf: :func:`query_work`'s, which the caller keeps: a signed query's
+    polytope needs megabytes, too many to allocate per call.
 
     Returns a POSE_* code (> 0: nothing computed) or POSE_OK."""
     code = check_pose(TA)
@@ -167,13 +163,12 @@ def query_one(buf, TA, TB, coherent, out, wbuf):
     code = check_pose(TB)
     if code != POSE_OK:
         return code + 10
-    head = buf[PAIR_HEAD:PAIR_SHAPES].view(np.int64)
-    start_fb, start_i, n_ia, n_ib = head[0], head[1], head[2], head[3]
-    idata = buf[start_i:].view(IDATA_DTYPE)
-    scratch = (buf[PAIR_R:PAIR_T].reshape((3, 3)), buf[PAIR_T:PAIR_INTS], wbuf[:WORK_ROWS * 4].reshape((WORK_ROWS, 4)),
-               wbuf[WORK_ROWS * 4:].view(np.int64))
-    posed_query(buf[PAIR_SHAPES:start_fb], idata[:n_ia], buf[start_fb:start_i], idata[n_ia:n_ia + n_ib],
-                buf[PAIR_INTS:PAIR_HEAD].view(np.int64), buf[:FLOATS_SIZE], TA, TB, coherent, scratch, out)
+    fA, iA = unpack_shape(packed_a)
+    fB, iB = unpack_shape(packed_b)
+    scratch = (state[PAIR_R:PAIR_T].reshape((3, 3)), state[PAIR_T:PAIR_INTS],
+               wbuf[:WORK_ROWS * 4].reshape((WORK_ROWS, 4)), wbuf[WORK_ROWS * 4:].view(np.int64))
+    posed_query(fA, iA, fB, iB, state[PAIR_INTS:PAIR_SIZE].view(np.int64), state[:FLOATS_SIZE], TA, TB, coherent,
+                scratch, out)
     return POSE_OK
 
 

@@ -16,6 +16,9 @@ a ball added to the core, in metres), and two flat arrays whose layout the kind 
   exponents in (0, 2] and their dual-norm exponents q = 2/(2 - e) (inf for e = 2), precomputed,
   then the vertices of an inscribed polytope (from FDATA_SIZE on); idata = that polytope's idata
   (layout as POLYTOPE); margin 0. Offsets and packing in kernels/superellipsoid_support.py.
+
+Both arrays also live in one float64 array, ``packed`` (:func:`pack_shape`), which the per-call
+kernel takes whole: numba unboxes one argument instead of two.
 """
 
 import numpy as np
@@ -32,3 +35,21 @@ STP = 4  # sphere-torus-patch bounding volume: layout in kernels/stp_support.py
 SUPERELLIPSOID = 5  # convex superellipsoid (CSE-BV): layout above and in kernels/superellipsoid_support.py
 
 CUBE_MAP_CELLS = 8  # least G, cells per cube-map face edge (6 * 8 * 8 = 384 cells); more on hulls of > 192 vertices
+
+SHAPE_HEAD = 2  # float64 slots before a packed shape's floats: the float and int32 counts, read as int64
+
+
+def pack_shape(fdata, idata) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(packed, fdata, idata): one float64 array holding SHAPE_HEAD slots (len(fdata), len(idata) as
+    int64), then fdata, then idata as IDATA_DTYPE, two to a slot; and views of it equal to fdata and
+    idata, which the shape keeps as its own (so that a change to one is seen through the other)."""
+    fdata = np.asarray(fdata, dtype=np.float64).ravel()
+    idata = np.asarray(idata, dtype=IDATA_DTYPE).ravel()
+    nf, ni = len(fdata), len(idata)
+    packed = np.zeros(SHAPE_HEAD + nf + (ni + 1) // 2)
+    packed[:SHAPE_HEAD].view(np.int64)[:] = (nf, ni)
+    f = packed[SHAPE_HEAD:SHAPE_HEAD + nf]
+    f[:] = fdata
+    i = packed[SHAPE_HEAD + nf:].view(IDATA_DTYPE)[:ni]
+    i[:] = idata
+    return packed, f, i

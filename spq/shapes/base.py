@@ -2,19 +2,29 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from spq.kernels.kinds import pack_shape
 
 
 @dataclass(frozen=True, eq=False)
 class KernelData:
-    """What the kernels see of a shape: kind code, margin (m) and two flat arrays (see kernels.kinds)."""
+    """What the kernels see of a shape: kind code, margin (m) and two flat arrays (see kernels.kinds),
+    which are views of one array, ``packed`` (kinds.pack_shape), made here from the given ones."""
 
     kind: int
     margin: float
     fdata: np.ndarray  # float64, C-contiguous
     idata: np.ndarray  # kinds.IDATA_DTYPE (int32), C-contiguous
+    packed: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        packed, fdata, idata = pack_shape(self.fdata, self.idata)
+        object.__setattr__(self, "packed", packed)
+        object.__setattr__(self, "fdata", fdata)
+        object.__setattr__(self, "idata", idata)
 
 
 class Shape:
