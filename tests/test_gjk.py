@@ -323,7 +323,9 @@ def test_per_call_and_batched_agree_bit_for_bit_on_every_kind():
 def test_a_shapes_arrays_are_views_of_its_packed_array():
     """A shape's fdata and idata are views of its packed array, which the per-call kernel reads: a
     change to one (an STP-BV's support method, set in idata) reaches a Pair made before it, whose
-    answers then equal a new Pair's; and a packed array holds what was given, whatever its length."""
+    answers then equal a new Pair's and the brute-force STP oracle's; and a packed array holds what
+    was given, whatever its length."""
+    from harness.references.stp_oracle import brute_force_support
     from spq.kernels.kinds import pack_shape
     for nf, ni in ((0, 0), (1, 1), (5, 2), (4, 7)):
         f, i = np.arange(nf) * 0.5, np.arange(ni, dtype=np.int32) - 3
@@ -334,12 +336,16 @@ def test_a_shapes_arrays_are_views_of_its_packed_array():
     stp = spq.STPBV.from_points(pts, 0.01, 1.0)
     kd = stp.kernel_data()
     assert np.shares_memory(kd.packed, kd.fdata) and np.shares_memory(kd.packed, kd.idata)
-    pb = pose(rot=Rotation.from_rotvec([0.3, 0.1, -0.2]).as_matrix(), t=(0.3, 0.05, 0.1))
+    pb = pose(rot=Rotation.from_rotvec([0.3, 0.1, -0.2]).as_matrix(), t=(0.6, 0.05, 0.1))
     old = spq.Pair(stp, stp)
-    before = old.cold_distance(np.eye(4), pb)
     for method in ("naive", "march", "hull"):
         stp.method = method
         got = old.cold_distance(np.eye(4), pb)
         new = spq.Pair(stp, stp).cold_distance(np.eye(4), pb)
         assert np.array_equal(got._out, new._out, equal_nan=True), method
-        assert abs(got.distance - before.distance) <= 1e-9, method  # every method gives the distance
+        # the oracle: the gap between the bodies along the returned normal, from brute-force supports
+        # of the generating points (no topology, no kernel), is the distance
+        n = got.normal
+        h_a = n @ brute_force_support(pts, 0.01, 1.0, n)
+        h_b = -n @ (pb[:3, :3] @ brute_force_support(pts, 0.01, 1.0, pb[:3, :3].T @ -n) + pb[:3, 3])
+        assert got.status == "separated" and abs((-h_b - h_a) - got.distance) <= 1e-9, method
