@@ -105,8 +105,8 @@ def test_the_suites_side_by_side_write_what_one_process_writes(tmp_path):
 
     only = ["continuity", "depth", "stability"]
     serial, pooled = tmp_path / "serial", tmp_path / "pooled"
-    run_report(serial, quick=True, only=only, workers=1)
-    run_report(pooled, quick=True, only=only, workers=2)
+    run_report(serial, size="quick", only=only, workers=1)
+    run_report(pooled, size="quick", only=only, workers=2)
     tables = sorted(serial.glob("*.csv"))
     assert len(tables) >= 3
     for path in tables:
@@ -119,4 +119,4 @@ def test_the_report_refuses_no_workers(tmp_path):
     from harness.report.assemble import run_report
 
     with pytest.raises(ValueError, match="workers"):
-        run_report(tmp_path, quick=True, only=["continuity"], workers=0)
+        run_report(tmp_path, size="quick", only=["continuity"], workers=0)

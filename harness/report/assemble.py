@@ -2,7 +2,9 @@
 
 Each suite of harness/suites runs with the report's config, its output is written into the output
 folder, and its section is built from the files written, with readings computed from the numbers.
-``quick`` shrinks every suite so that the whole report takes a few minutes.
+The run's size (:data:`SIZES`) sets every suite's samples: "standard" (`spq report`) answers every question of
+"full" (`spq report --full`, the committed report) on fewer samples, in about ten minutes on a fresh
+2-core install; "quick" shrinks every suite so that the whole report takes a minute or two.
 
 The suites that time nothing (accuracy, stability, pictures: ``timed=False``) run first, side by side
 on ``workers`` processes, longest first; then the benchmarks run one at a time in this process, on an
@@ -28,7 +30,7 @@ from harness.report.meta import run_metadata
 class Suite:
     name: str
     module: str  # the suite's module in harness.suites (run(config) -> Output)
-    config: Callable[[bool, int, Path], object]  # (quick, seed, output folder) -> the suite's config
+    config: Callable[[str, int, Path], object]  # (size, seed, output folder) -> the suite's config
     section: Callable[[Path], Section]
     timed: bool = True  # whether it measures speed (then it runs alone); False: it may share the machine
 
@@ -36,14 +38,14 @@ class Suite:
 CHECK_BASELINE = Path(__file__).resolve().parent.parent / ".ci" / "check-baseline.json"
 
 
-def check_config(quick: bool, seed: int, out: Path):
+def check_config(size: str, seed: int, out: Path):
     """spq check against the committed baseline (if this is a source checkout), speed advisory, the
     run appended to the report's history."""
     from harness.suites import check
     from harness.suites.check.gate import CheckConfig
 
     history = str(out / "check_history.jsonl")
-    if quick:  # smaller than the baseline's run: nothing to compare with
+    if size == "quick":  # smaller than the baseline's run: nothing to compare with
         return check.Config(CheckConfig(seed=seed, per_bucket=26, oracle_per_bucket=1, speed_poses=500, fuzz_cases=1,
                                         fuzz_poses=200),
                             history=history)
@@ -504,76 +506,104 @@ def control_section(out: Path) -> Section:
                    [c for c in charts if c.path.is_file()])
 
 
-def _config(module: str, **fixed) -> Callable[[bool, int, Path], object]:
-    """(quick, seed, out) -> module's Config with the fixed fields: a dict as a field's value holds its
-    quick setting under True and its full one under False (None: the suite's default); a callable is
-    called when the config is made."""
-    def make(quick: bool, seed: int, out: Path):
+SIZES = ("quick", "standard", "full")
+
+
+def _sized(value, size: str):
+    """A field's setting for the run's size: a dict holds it per size ("standard" missing: the full
+    run's); a callable is called; anything else is the setting."""
+    if isinstance(value, dict):
+        return value.get(size, value["full"]) if size == "standard" else value[size]
+    return value() if callable(value) else value
+
+
+def _config(module: str, **fixed) -> Callable[[str, int, Path], object]:
+    """(size, seed, out) -> module's Config with the fixed fields, each set by :func:`_sized` (None:
+    the suite's default)."""
+    def make(size: str, seed: int, out: Path):
         import importlib
 
         cls = importlib.import_module(f"harness.suites.{module}").Config
-        chosen = {k: (v[quick] if isinstance(v, dict) else v() if callable(v) else v) for k, v in fixed.items()}
+        chosen = {k: _sized(v, size) for k, v in fixed.items()}
         return cls(seed=seed, **{k: v for k, v in chosen.items() if v is not None})
     return make
 
 
+QUICK = {"quick": True, "full": False}
+ONE = {"quick": 1, "full": None}  # a benchmark's repeats: one in a quick run
+
+# The standard run (`spq report`) answers every question of the full one (`spq report --full`, the
+# committed report) on fewer samples, so that a fresh install's first report takes about ten minutes on
+# two cores (docs/commands/report.md gives both sets of sizes).
 SUITES = [
-    Suite("pictures", "pictures", _config("pictures", quick={True: True, False: False}, robot=report_robot),
-          pictures_section, timed=False),
-    Suite("crosscheck", "crosscheck", _config("crosscheck", per_bucket={True: 26, False: None},
-                                              agreement_poses={True: 20000, False: None}), crosscheck_section, timed=False),
-    Suite("bench pch", "bench", _config("bench", kind="pch", poses={True: 2000, False: None},
-                                        repeats={True: 1, False: None}),
-          lambda out: bench_section(out, "pch", "Throughput, PCH-PCH (every engine)")),
-    Suite("bench stp", "bench", _config("bench", kind="stp", poses={True: 2000, False: None},
-                                        repeats={True: 1, False: None}),
-          lambda out: bench_section(out, "stp", "Throughput with STP-BVs")),
-    Suite("bench-support", "support", _config("support", directions={True: 2000, False: None},
-                                              repeats={True: 1, False: None}), support_section),
-    Suite("table1", "table1", _config("table1", poses={True: 2000, False: None}, repeats={True: 1, False: None}),
-          table1_section),
-    Suite("continuity", "continuity", _config("continuity", quick={True: True, False: False}), continuity_section,
+    Suite("pictures", "pictures", _config("pictures", quick=QUICK, robot=report_robot), pictures_section,
           timed=False),
-    Suite("tradeoff", "tradeoff", _config("tradeoff", quick={True: True, False: False}), tradeoff_section),
-    Suite("rtradeoff", "rtradeoff", _config("rtradeoff", quick={True: True, False: False}), rtradeoff_section),
+    Suite("crosscheck", "crosscheck", _config("crosscheck", per_bucket={"quick": 26, "standard": 200, "full": None},
+                                              agreement_poses={"quick": 20000, "standard": 100_000, "full": None}),
+          crosscheck_section, timed=False),
+    Suite("bench pch", "bench", _config("bench", kind="pch", poses={"quick": 2000, "full": None}, repeats=ONE),
+          lambda out: bench_section(out, "pch", "Throughput, PCH-PCH (every engine)")),
+    Suite("bench stp", "bench", _config("bench", kind="stp", poses={"quick": 2000, "full": None}, repeats=ONE),
+          lambda out: bench_section(out, "stp", "Throughput with STP-BVs")),
+    Suite("bench-support", "support", _config("support", directions={"quick": 2000, "full": None}, repeats=ONE),
+          support_section),
+    Suite("table1", "table1", _config("table1", poses={"quick": 2000, "full": None}, repeats=ONE), table1_section),
+    Suite("continuity", "continuity", _config("continuity", quick=QUICK), continuity_section, timed=False),
+    Suite("tradeoff", "tradeoff", _config("tradeoff", quick=QUICK), tradeoff_section),
+    Suite("rtradeoff", "rtradeoff", _config("rtradeoff", quick=QUICK), rtradeoff_section),
     # the full stability suite judges 10,000 generated cases: on two processes (its time is about halved)
-    Suite("stability", "stability", _config("stability", quick={True: True, False: False}, workers={True: 1, False: 2}),
+    Suite("stability", "stability", _config("stability", quick=QUICK,
+                                            generated_cases={"quick": None, "standard": 2000, "full": None},
+                                            workers={"quick": 1, "standard": 1, "full": 2}),
           stability_section, timed=False),
-    Suite("depth", "depth", _config("depth", per_bucket={True: 3, False: 50}, stp_per_bucket={True: 1, False: None}),
+    Suite("depth", "depth", _config("depth", per_bucket={"quick": 3, "standard": 12, "full": 50},
+                                    stp_per_bucket={"quick": 1, "standard": 6, "full": None}),
           depth_section, timed=False),
-    Suite("bench robot", "robot", _config("robot", robot=report_robot, configs={True: 40, False: None},
-                                          steps={True: 200, False: None}, repeats={True: 1, False: None},
-                                          engine_configs={True: 10, False: None}), robot_section),
-    Suite("bench robots", "robots", _config("robots", quick={True: True, False: False}), robots_section),
+    Suite("bench robot", "robot", _config("robot", robot=report_robot,
+                                          configs={"quick": 40, "standard": 300, "full": None},
+                                          steps={"quick": 200, "standard": 300, "full": None}, repeats=ONE,
+                                          engine_configs={"quick": 10, "standard": 50, "full": None}),
+          robot_section),
+    Suite("bench robots", "robots", _config("robots", quick=QUICK, configs={"quick": None, "standard": 20, "full": None},
+                                            steps={"quick": None, "standard": 50, "full": None},
+                                            engine_configs={"quick": None, "standard": 2, "full": None},
+                                            repeats={"quick": None, "standard": 2, "full": None}),
+          robots_section),
     # the report's controller run is smaller than `spq bench control`'s default (20 tasks, pink too: pink's
     # barrier over every pair takes 50 to 100 ms a step on the humanoids)
-    Suite("bench control", "control", _config("control", robots={True: ["panda"], False: None},
-                                              tasks={True: 1, False: 4}, steps={True: 150, False: None},
-                                              methods={True: ["spq-pch", "spq-stp", "pin-damper"],
-                                                       False: ["spq-pch", "spq-stp", "spq-cse", "spq-auto", "mink",
-                                                               "pin-damper"]},
-                                              speed={True: False, False: True}),
+    Suite("bench control", "control", _config("control", robots={"quick": ["panda"], "full": None},
+                                              tasks={"quick": 1, "standard": 1, "full": 4},
+                                              steps={"quick": 150, "full": None},
+                                              methods={"quick": ["spq-pch", "spq-stp", "pin-damper"],
+                                                       "full": ["spq-pch", "spq-stp", "spq-cse", "spq-auto", "mink",
+                                                                "pin-damper"]},
+                                              speed={"quick": False, "full": True}),
           control_section),
     # a small campaign (the shrinking of failing cases is spq fuzz's, which writes into tests/)
-    Suite("fuzz", "fuzz", _config("fuzz", queries={True: 4000, False: 200_000}, poses={True: 200, False: 2000},
-                                  shrink=False), fuzz_section, timed=False),
+    Suite("fuzz", "fuzz", _config("fuzz", queries={"quick": 4000, "standard": 50_000, "full": 200_000},
+                                  poses={"quick": 200, "standard": 1000, "full": 2000}, shrink=False),
+          fuzz_section, timed=False),
     Suite("check", "check", check_config, check_section),
 ]
 
 
-def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = None,
+def run_report(out: Path, size: str = "standard", seed: int = 0, only: list[str] | None = None,
                workers: int | None = None) -> list[Path]:
-    """Run the suites into out (quick: small settings) and render the report; each suite's terminal
-    lines are printed as it finishes (a regression found by the check is shown in its section).
-    workers: processes for the suites that time nothing (module docstring); None: every core."""
+    """Run the suites into out at a size of :data:`SIZES` ("quick": small settings; "standard": every
+    question on fewer samples, about ten minutes on two cores; "full": the committed report's) and
+    render the report; each suite's terminal lines are printed as it finishes (a regression found by
+    the check is shown in its section). workers: processes for the suites that time nothing (module
+    docstring); None: every core."""
     from harness.report.verdict import verdict
 
+    if size not in SIZES:
+        raise ValueError(f"report size must be one of {', '.join(SIZES)}; got {size!r}")
     workers = os.cpu_count() or 1 if workers is None else int(workers)
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     chosen = [i for i, suite in enumerate(SUITES) if not only or suite.name in only]
     start = time.perf_counter()
-    timings, memory = {}, {}
+    timings, memory, compiled = {}, {}, {}
 
     def report(i, lines, seconds, peak_mb):
         name = SUITES[i].name
@@ -587,37 +617,47 @@ def run_report(out: Path, quick: bool, seed: int = 0, only: list[str] | None = N
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
+        from harness.report.compile import PARTS, compile_part
+
         # longest first (their last full run's order): the pool's makespan is then near its least
         shared.sort(key=lambda i: SHARED_ORDER.index(SUITES[i].name) if SUITES[i].name in SHARED_ORDER else 99)
         with ProcessPoolExecutor(min(workers, len(shared)), mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(_run_suite, i, quick, seed, out): i for i in shared}
+            # the kernels first, split between the processes (harness.report.compile): otherwise each
+            # suite's process compiles the same kernels at the same time on a fresh install
+            compiled.update(f.result() for f in [pool.submit(compile_part, part) for part in PARTS])
+            print("compiled kernels (or loaded them from numba's cache): "
+                  + ", ".join(f"{part} {seconds:.0f} s" for part, seconds in compiled.items()), flush=True)
+            futures = {pool.submit(_run_suite, i, size, seed, out): i for i in shared}
             for future in as_completed(futures):
                 report(futures[future], *future.result())
         serial = [i for i in chosen if SUITES[i].timed]
     else:
         serial = chosen
     for i in serial:
-        report(i, *_run_suite(i, quick, seed, out))
+        report(i, *_run_suite(i, size, seed, out))
     sections = []
     for i in chosen:
         sections.append(SUITES[i].section(out))
         for chart in sections[-1].charts:
             chart.look = chart.look or LOOK.get(chart.path.name, "")
-    meta = run_metadata(command="spq report" + (" --quick" if quick else ""), seed=seed, quick=quick, workers=workers,
-                        suite_seconds=timings, suite_peak_memory_mb=memory,
+    meta = run_metadata(command="spq report" + ("" if size == "standard" else f" --{size}"), seed=seed, size=size,
+                        workers=workers, compile_seconds=compiled, suite_seconds=timings, suite_peak_memory_mb=memory,
                         seconds=round(time.perf_counter() - start, 1))
     intro = ["spq against python-fcl, coal, pybullet, MuJoCo, pinocchio and an exact reference, on "
              "polyhedral hulls (PCH), sphere-torus-patch bounding volumes (STP-BV) and superellipsoids (CSE); every "
              "figure measured in this run, CSVs beside this page. "
-             + ("Quick run: small settings, noisier figures." if quick else "Full run.")]
+             + {"quick": "Quick run: small settings, noisier figures.",
+                "standard": "Standard run: every suite on fewer samples than the full run (`spq report --full`; "
+                            "docs/commands/report.md gives both sizes).",
+                "full": "Full run."}[size]]
     return render(out, "spq report", intro, sections, meta, lead=verdict(out))
 
 
 # the suites that share the machine, longest first in a full run (seconds on 2 cores, 2026-11)
-SHARED_ORDER = ["pictures", "crosscheck", "depth", "stability", "fuzz", "continuity"]
+SHARED_ORDER = ["crosscheck", "depth", "stability", "fuzz", "pictures", "continuity"]
 
 
-def _run_suite(index: int, quick: bool, seed: int, out: Path) -> tuple[list[str], float, float]:
+def _run_suite(index: int, size: str, seed: int, out: Path) -> tuple[list[str], float, float]:
     """Run SUITES[index] and write its output into out: (its terminal lines, seconds, this process's
     peak memory so far in MB). A top-level function, so that a pool's worker can run it."""
     import importlib
@@ -627,7 +667,7 @@ def _run_suite(index: int, quick: bool, seed: int, out: Path) -> tuple[list[str]
 
     suite = SUITES[index]
     t0 = time.perf_counter()
-    output = importlib.import_module(f"harness.suites.{suite.module}").run(suite.config(quick, seed, out))
+    output = importlib.import_module(f"harness.suites.{suite.module}").run(suite.config(size, seed, out))
     write_output(output, out)
     peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # kB on Linux
     return list(output.lines), round(time.perf_counter() - t0, 1), round(peak_kb / 1024.0, 0)
