@@ -120,3 +120,35 @@ def test_the_report_refuses_no_workers(tmp_path):
 
     with pytest.raises(ValueError, match="workers"):
         run_report(tmp_path, size="quick", only=["continuity"], workers=0)
+
+
+def test_every_suite_builds_its_config_at_every_size_and_standard_is_never_larger_than_full(tmp_path):
+    """spq report's sizes: each suite's Config accepts its fields at every size, and no sample count of
+    the standard run exceeds the full run's (nor a quick one's the standard's, where the suite's own quick
+    mode does not set its sizes)."""
+    import dataclasses
+
+    from harness.report.assemble import SIZES, SUITES
+
+    counts = ("per_bucket", "stp_per_bucket", "agreement_poses", "poses", "directions", "configs", "steps",
+              "engine_configs", "repeats", "tasks", "queries", "generated_cases", "workers")
+    for suite in SUITES:
+        configs = {size: suite.config(size, 0, tmp_path) for size in SIZES}
+        fields = {f.name for f in dataclasses.fields(configs["full"])}
+        for name in fields & set(counts):
+            q, s, f = (getattr(configs[size], name) for size in SIZES)
+            if None in (q, s, f):
+                continue
+            assert s <= f, (suite.name, name, s, f)
+            own_quick = getattr(configs["quick"], "quick", False)
+            assert q <= s or own_quick or name == "workers", (suite.name, name, q, s)
+
+
+def test_the_report_refuses_an_unknown_size_and_compile_part(tmp_path):
+    from harness.report.assemble import run_report
+    from harness.report.compile import compile_part
+
+    with pytest.raises(ValueError, match="size"):
+        run_report(tmp_path, size="huge", only=["continuity"])
+    with pytest.raises(ValueError, match="compile part"):
+        compile_part("everything")
