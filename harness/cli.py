@@ -269,7 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     size = p.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true", help="small settings (a minute or two; what the report test runs)")
     size.add_argument("--full", action="store_true",
-                      help="the full sizes of the committed report (about 15 minutes with the kernels compiled; the "
+                      help="the full sizes of the committed report (about 13 minutes with the kernels compiled; the "
                            "default, standard run answers the same questions on fewer samples in about 10 on a fresh "
                            "2-core install)")
     p.add_argument("--seed", type=int, default=0)
