@@ -129,3 +129,105 @@ def test_torus_ball_against_a_segment_is_the_brute_force_nearest(link4):
             assert -1e-12 <= np.dot(y - s, t - s) <= np.dot(t - s, t - s) + 1e-12  # ... and between s and t
             # x runs from the circle point farthest from y to y
             assert abs(np.linalg.norm(x) - np.linalg.norm(y - circle, axis=1).max()) <= 1e-6
+
+
+def _tangent_directions(points):
+    """Unit directions that reach every kind of patch: random ones (mostly small spheres at small r),
+    the hull's facet normals (big spheres) and the bisectors of adjacent facets (tori)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(points)
+    normals = hull.equations[:, :3]
+    bisectors = [normals[i] + normals[j] for i, nb in enumerate(hull.neighbors) for j in nb if i < j]
+    v = np.vstack([np.random.default_rng(31).normal(size=(200, 3)), normals, bisectors])
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+@pytest.mark.parametrize("R", [0.3, 2.0])
+def test_stp_support_jacobian_matches_central_differences_of_the_brute_force_support(R):
+    from harness.references.stp_oracle import BruteForceSTP
+    from spq.kernels.stp_support import stp_support_jacobian
+
+    points = np.random.default_rng(30).normal(size=(20, 3)) * [0.05, 0.03, 0.04]
+    r = 0.005
+    stp = STPBV.from_points(points, r, R)
+    oracle = BruteForceSTP(points, r, R)
+    kd = stp.kernel_data()
+    h = 1e-7
+    kinds = {"small": 0, "big": 0, "torus": 0}
+    for u in _tangent_directions(points):
+        out, jac, tmp = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
+        p = stp_support_jacobian(kd.fdata, kd.idata, u[0], u[1], u[2], -1, out, jac)
+        np.testing.assert_allclose(out, oracle.support_many(u)[0], rtol=0, atol=1e-12)
+        # central differences of the oracle's support, where both sides stay on the same patch
+        steps = h * np.eye(3)
+        moved = [(u + s * e) / np.linalg.norm(u + s * e) for e in steps for s in (1.0, -1.0)]
+        same = all(stp_support_jacobian(kd.fdata, kd.idata, *w, p, np.empty(3), tmp) == p for w in moved)
+        if not same:
+            continue
+        fd = np.column_stack([(oracle.support_many(u + e)[0] - oracle.support_many(u - e)[0]) / (2 * h) for e in steps])
+        np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-5 * R)
+        kinds["small" if p < stp.n_small else "big" if p < stp.n_small + stp.n_big else "torus"] += 1
+    assert min(kinds.values()) >= 5, kinds
+
+
+def _widest_slab(a, oracle_b, pose_a, pose_b, n0):
+    """max over unit n near n0 (world, A to B) of the gap between the planes of A's support along n
+    and B's (brute force) along -n: a lower bound of the distance, by Nelder-Mead on n's tangent plane."""
+    from scipy.optimize import minimize
+
+    e1 = np.cross(n0, [1.0, 0.0, 0.0] if abs(n0[0]) < 0.6 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n0, e1)
+    Ra, Rb = pose_a[:3, :3], pose_b[:3, :3]
+
+    def minus_gap(x):
+        n = n0 + x[0] * e1 + x[1] * e2
+        n /= np.linalg.norm(n)
+        top_a = n @ (Ra @ a.support(Ra.T @ n) + pose_a[:3, 3])
+        bottom_b = n @ (Rb @ oracle_b.support_many(-Rb.T @ n)[0] + pose_b[:3, 3])
+        return top_a - bottom_b
+
+    res = minimize(minus_gap, np.zeros(2), method="Nelder-Mead",
+                   options={"initial_simplex": [[0, 0], [1e-4, 0], [0, 1e-4]], "xatol": 1e-9, "fatol": 1e-14})
+    return -min(res.fun, minus_gap(np.zeros(2)))
+
+
+@pytest.mark.parametrize("R", [0.3, 2.0])
+def test_superellipsoid_against_stp_agrees_with_the_plain_descent_and_the_brute_force_supports(link4, R):
+    """Newton's finish between a superellipsoid and an STP-BV (two curved sides), either way round,
+    cold and along a trajectory, against the plain descent on the shapes' own supports and the
+    separating-plane bound of the STP-BV's brute-force support along the returned normal."""
+    from harness.references.stp_oracle import BruteForceSTP
+
+    points = link4.vertices[np.random.default_rng(32).choice(len(link4.vertices), 30, replace=False)]
+    stp = STPBV.from_points(points, 0.005, R)
+    oracle = BruteForceSTP(points, 0.005, R)
+    cse = spq.Superellipsoid(0.06, 0.04, 0.08, 0.6, 1.3)
+    pa, pb = random_poses(150, seed=33, translation_range=0.15)
+    forward = spq.distances(cse, stp, pa, pb)
+    backward = spq.distances(stp, cse, pb, pa)
+    sep = forward.status == "separated"
+    assert sep.sum() > 50 and (~sep).sum() > 10
+    np.testing.assert_array_equal(forward.status, backward.status)
+    np.testing.assert_allclose(forward.distance, backward.distance, rtol=0, atol=3e-10)
+    for i in range(len(pa)):
+        st, upper, lower = plain_descent(cse, stp, pa[i], pb[i])
+        if not sep[i]:
+            assert st in (gjk.OVERLAPPING, gjk.TOUCHING) or upper <= 1e-9
+            continue
+        assert st == gjk.SEPARATED
+        d = forward.distance[i]
+        assert lower - 1e-9 <= d <= upper + 1e-9
+        assert forward.upper_bound[i] - forward.lower_bound[i] <= 1e-10 + 1e-10 * d
+        # a separating slab d wide (to 1e-10) near the returned normal, between the planes of the
+        # superellipsoid's support and the STP-BV's brute-force one: the distance is at least that
+        assert _widest_slab(cse, oracle, pa[i], pb[i], forward.normal[i]) >= d - 1e-10 - 1e-10 * d
+    # along a trajectory, warm-started from the last query's patches: the cold answers
+    path_b = np.repeat(pb[:1], 200, axis=0)
+    path_b[:, :3, 3] = pb[0, :3, 3] + np.linspace(0.0, 1.0, 200)[:, None] * (pb[1, :3, 3] - pb[0, :3, 3])
+    path_a = np.repeat(pa[:1], 200, axis=0)
+    cold = spq.distances(cse, stp, path_a, path_b)
+    warm = spq.distances(cse, stp, path_a, path_b, coherent=True)
+    np.testing.assert_array_equal(cold.status, warm.status)
+    np.testing.assert_allclose(warm.distance, cold.distance, rtol=0, atol=3e-10)

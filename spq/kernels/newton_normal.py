@@ -22,7 +22,8 @@ from __future__ import annotations
 import math
 
 from spq.kernels.jit import kernel
-from spq.kernels.kinds import SUPERELLIPSOID
+from spq.kernels.kinds import STP, SUPERELLIPSOID
+from spq.kernels.stp_support import stp_support_jacobian
 from spq.kernels.superellipsoid_support import F_E1, F_E2, superellipsoid_support_jacobian
 
 NEWTON_EVALUATIONS = 12  # support pairs (with derivatives) before the caller's GJK takes over
@@ -41,21 +42,45 @@ SUFFICIENT = 0.1
 
 
 @kernel(inline="always")
+def _smooth_superellipsoid(k, f):
+    return k == SUPERELLIPSOID and f[F_E1] < 2.0 and f[F_E2] < 2.0
+
+
+@kernel(inline="always")
 def smooth_pair(kA, fA, kB, fB):
-    """Whether both bodies have support maps with a bounded derivative almost everywhere."""
-    return (kA == SUPERELLIPSOID and kB == SUPERELLIPSOID and fA[F_E1] < 2.0 and fA[F_E2] < 2.0
-            and fB[F_E1] < 2.0 and fB[F_E2] < 2.0)
+    """Whether both bodies are superellipsoids with support maps with a bounded derivative almost
+    everywhere."""
+    return _smooth_superellipsoid(kA, fA) and _smooth_superellipsoid(kB, fB)
+
+
+@kernel(inline="always")
+def smooth_against_stp(kA, fA, kB, fB):
+    """Whether one body is an STP-BV and the other such a superellipsoid: two curved sides, where
+    GJK converges only linearly (Table I's CSE-STP)."""
+    return ((kA == STP and _smooth_superellipsoid(kB, fB))
+            or (kB == STP and _smooth_superellipsoid(kA, fA)))
+
+
+@kernel(inline="always")
+def _side(k, f, ix, d0, d1, d2, hints, slot, out, jac):
+    """One body's support along the unit d and its derivative (see _evaluate); an STP-BV's search
+    starts from hints[slot] and leaves its patch there."""
+    if k == STP:
+        hints[slot] = stp_support_jacobian(f, ix, d0, d1, d2, hints[slot], out, jac)
+        return True
+    return superellipsoid_support_jacobian(f, d0, d1, d2, out, jac)
 
 
 @kernel
-def _evaluate(fA, fB, R, t, n0, n1, n2, pa, pb, tmp, JA, JB):
+def _evaluate(pair, n0, n1, n2, pa, pb, tmp, JA, JB, hints):
     """Support points pa = s_A(n), pb = s_B(-n) (A's frame) and their derivatives JA, JB (JB in
     B's frame); False where a derivative does not exist."""
-    ok_a = superellipsoid_support_jacobian(fA, n0, n1, n2, pa, JA)
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    ok_a = _side(kA, fA, iA, n0, n1, n2, hints, 0, pa, JA)
     b0 = -(R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2)
     b1 = -(R[0, 1] * n0 + R[1, 1] * n1 + R[2, 1] * n2)
     b2 = -(R[0, 2] * n0 + R[1, 2] * n1 + R[2, 2] * n2)
-    ok_b = superellipsoid_support_jacobian(fB, b0, b1, b2, tmp, JB)
+    ok_b = _side(kB, fB, iB, b0, b1, b2, hints, 1, tmp, JB)
     for r in range(3):
         pb[r] = R[r, 0] * tmp[0] + R[r, 1] * tmp[1] + R[r, 2] * tmp[2] + t[r]
     return ok_a and ok_b
@@ -94,15 +119,17 @@ def _form(JA, JB, R, x0, x1, x2, y0, y1, y2):
 
 
 @kernel
-def newton_normal(fA, fB, R, t, n, lower, tol_abs, tol_rel, best_a, best_b, work):
+def newton_normal(pair, n, lower, tol_abs, tol_rel, best_a, best_b, work, hints):
     """Newton's method from the unit normal n (A to B, A's frame) of a separated pair of smooth
-    superellipsoids (see :func:`smooth_pair`), B at (R, t) in A's frame.
+    bodies (see :func:`smooth_pair` and :func:`smooth_against_stp`), B at (R, t) in A's frame.
 
     Returns (converged, evaluations, upper, lower, m0, m1, m2): the best upper bound, whose support
     points are left in best_a and best_b (A's frame), the best lower bound (at least ``lower``) and
     the normal to resume from. converged: upper - lower <= tol_abs + tol_rel * upper.
-    work: (9, 3) scratch.
+    work: (9, 3) scratch. hints: int64 (2,), the patches an STP-BV side (A: 0, B: 1) starts its
+    searches from (-1: none), left on its last patches.
     """
+    R = pair[8]
     n0, n1, n2 = n
     pa = work[0]
     pb = work[1]
@@ -120,7 +147,7 @@ def newton_normal(fA, fB, R, t, n, lower, tol_abs, tol_rel, best_a, best_b, work
     slope = 0.0  # the lower bound's derivative along the current step, at m
     while evaluations < NEWTON_EVALUATIONS:
         evaluations += 1
-        ok = _evaluate(fA, fB, R, t, n0, n1, n2, pa, pb, tmp, JA, JB)
+        ok = _evaluate(pair, n0, n1, n2, pa, pb, tmp, JA, JB, hints)
         s0, s1, s2 = pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]
         lo = -(s0 * n0 + s1 * n1 + s2 * n2)
         up = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)

@@ -271,3 +271,41 @@ def hull_core(k, m, f, ix):
         o_hull = _offsets(ix)[3]
         return POLYTOPE, f[F_R], f[o_hull:o_hull + 3 * ix[IDX_H]], ix[ix[IDX_HULL]:ix.shape[0]]
     return k, m, f[0:f.shape[0]], ix[0:ix.shape[0]]
+
+
+@kernel
+def stp_support_jacobian(f, ix, u0, u1, u2, start, out, jac):
+    """Support point along the unit direction u into out[0:3] and its derivative on the unit
+    sphere into jac (3, 3) (jac[i, j] = d out_i / d u_j, zero along u); returns the patch (the next
+    call's ``start``).
+
+    A patch's support is its ball's, c + rad u: a sphere's centre is fixed, so the derivative is
+    rad (I - u u^T); a torus's ball centre m - a w turns with w, the unit part of u across the
+    torus axis e, which subtracts (a / |u - (u.e) e|) t t^T, t = e x w, along the circle. Both are
+    positive semi-definite on the patch's region (the torus's radius of curvature along its circle
+    is at least r there), and they jump where the patch changes."""
+    p, _ = find_patch(f, ix, ix[IDX_METHOD], start, u0, u1, u2)
+    c0, c1, c2, rad = ball_of_patch(f, ix, p, u0, u1, u2)
+    out[0] = c0 + rad * u0
+    out[1] = c1 + rad * u1
+    out[2] = c2 + rad * u2
+    u = (u0, u1, u2)
+    for i in range(3):
+        for j in range(3):
+            jac[i, j] = rad * ((1.0 if i == j else 0.0) - u[i] * u[j])
+    V, F = ix[IDX_V], ix[IDX_F]
+    if p >= V + F:
+        k = _offsets(ix)[1] + 7 * (p - V - F)
+        e0, e1, e2, a = f[at(k + 3)], f[at(k + 4)], f[at(k + 5)], f[at(k + 6)]
+        de = u0 * e0 + u1 * e1 + u2 * e2
+        w0, w1, w2 = u0 - de * e0, u1 - de * e1, u2 - de * e2
+        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        if wn > 0.0:
+            w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
+            t0, t1, t2 = e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
+            s = a / wn
+            tv = (t0, t1, t2)
+            for i in range(3):
+                for j in range(3):
+                    jac[i, j] -= s * tv[i] * tv[j]
+    return p

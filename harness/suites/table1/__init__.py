@@ -100,7 +100,9 @@ def run(config: Config) -> Output:
         "polytope). A superellipsoid is smooth everywhere, so GJK would converge on it only linearly; between "
         f"two of them, spq runs GJK on polytopes inscribed in them ({INNER_DIRECTIONS} support points each; an overlap there is "
         "theirs), then Newton's method on the contact normal with the supports' analytic derivatives, which "
-        "closes the 1e-10 m certificate in a few steps. Against a PCH or an STP-BV, the plain GJK runs.")
+        "closes the 1e-10 m certificate in a few steps. Against an STP-BV, the same Newton steps start from the "
+        "normal between the inscribed polytope and the STP-BV's grown hull, with the sphere and torus patches' "
+        "derivatives; against a PCH (a flat side), the plain GJK runs.")
     md = [f"# Table I: proximity queries per second ({config.object})", "",
           (f"Two copies of {config.object} ({bodies['PCH'].features} hull vertices) covered by a PCH-BV, an STP-BV "
            f"(r = {config.r} m, R = {config.R} m) and a CSE-BV ({cse_text}). {config.poses} pose pairs: uniformly "
