@@ -418,6 +418,30 @@ def test_support_jacobian_matches_central_differences_of_the_support(params):
     assert checked > 150
 
 
+@pytest.mark.parametrize("params", [(0.3, 0.2, 0.1, 0.1, 0.1), (0.3, 0.2, 0.1, 1.0, 1.0), (0.07, 0.12, 0.09, 0.3, 0.3),
+                                    (0.077, 0.083, 0.137, 0.42, 1.02)])
+def test_implicit_function_gradient_and_hessian_match_central_differences(params):
+    from spq.kernels.closest_points_newton import implicit
+
+    rng = np.random.default_rng(27)
+    f = spq.Superellipsoid(*params).kernel_data().fdata
+    for x in rng.uniform(-1.2, 1.2, size=(100, 3)) * np.array(params[:3]):
+        g, H = np.empty(3), np.empty((3, 3))
+        F = implicit(f, *x, g, H)
+        assert F == pytest.approx(implicit_F(x[None], *params)[0], rel=1e-12)
+        h = 1e-6 * np.abs(x).min()  # stay inside the octant
+        fd_g = np.array([(implicit_F((x + h * e)[None], *params)[0] - implicit_F((x - h * e)[None], *params)[0]) / (2 * h)
+                         for e in np.eye(3)])
+        np.testing.assert_allclose(g, fd_g, rtol=1e-5, atol=1e-6 * np.abs(fd_g).max())
+        fd_H = np.empty((3, 3))
+        for j, e in enumerate(np.eye(3)):
+            gp, gm, Hs = np.empty(3), np.empty(3), np.empty((3, 3))
+            implicit(f, *(x + h * e), gp, Hs)
+            implicit(f, *(x - h * e), gm, Hs)
+            fd_H[:, j] = (gp - gm) / (2 * h)
+        np.testing.assert_allclose(H, fd_H, rtol=1e-4, atol=1e-5 * np.abs(fd_H).max())
+
+
 @pytest.mark.parametrize("params", SHAPES)
 def test_inner_polytope_lies_inside_and_hugs_the_surface(params):
     se = spq.Superellipsoid(*params)
@@ -464,7 +488,10 @@ def _surface_parameters(n, seed):
 
 
 @pytest.mark.parametrize("params_a, params_b", [((0.1, 0.07, 0.05, 0.4, 1.4), (0.08, 0.08, 0.12, 1.2, 0.6)),
-                                                ((0.05, 0.12, 0.08, 0.5, 1.5), (0.3, 0.2, 0.1, 1.9, 1.9))])
+                                                ((0.05, 0.12, 0.08, 0.5, 1.5), (0.3, 0.2, 0.1, 1.9, 1.9)),
+                                                # boxy (Newton on the closest points) and one fitted cover
+                                                ((0.07, 0.12, 0.09, 0.3, 0.3), (0.08, 0.05, 0.1, 0.5, 0.9)),
+                                                ((0.077, 0.083, 0.137, 0.42, 1.02), (0.07, 0.12, 0.09, 0.1, 0.6))])
 def test_distances_between_two_smooth_superellipsoids_agree_with_a_minimisation_over_the_parametric_surfaces(params_a, params_b):
     A, B = spq.Superellipsoid(*params_a), spq.Superellipsoid(*params_b)
     rng = np.random.default_rng(22)

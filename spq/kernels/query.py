@@ -57,6 +57,7 @@ from spq.kernels.gjk import (
 )
 from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
+from spq.kernels.closest_points_newton import PRIMAL_INNER_REL_TOL, closest_points_newton, primal_pair
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_against_stp, smooth_pair
 from spq.kernels.epa import EPA_RESULT, bounds_closed, epa, epa_run, epa_start
 from spq.kernels.epa_layout import EPA_TMP
@@ -993,14 +994,16 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
 @kernel
 def smooth_finish(pair, tol, dir_io, warm, work, out):
     """Two smooth bodies (see newton_normal.smooth_pair): GJK between their inner polytopes (an
-    overlap there is theirs), then Newton's method on the normal from the polytopes' closest
-    points. Returns the iterations used (result in out), or -1 - iterations when the plain descent
+    overlap there is theirs), then Newton's method on the closest points from the polytopes' where
+    neither body is pointy (closest_points_newton.primal_pair), else or if that fails Newton's
+    method on the normal from the polytopes' normal. Returns the iterations used (result in out), or -1 - iterations when the plain descent
     has to finish (dir_io then holds the best normal found). The polytopes' simplex is the warm
     start kept in warm (the superellipsoids' own descent has none to keep)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     tol_abs, tol_rel, max_iter = tol
     inner = (POLYTOPE, 0.0, fA[FDATA_SIZE:], iA, POLYTOPE, 0.0, fB[FDATA_SIZE:], iB, R, t)
-    status, k, v0, v1, v2, vv, lower, it = descend(inner, (tol_abs, max(tol_rel, INNER_REL_TOL), max_iter), dir_io,
+    loose = PRIMAL_INNER_REL_TOL if primal_pair(kA, fA, kB, fB) else INNER_REL_TOL
+    status, k, v0, v1, v2, vv, lower, it = descend(inner, (tol_abs, max(tol_rel, loose), max_iter), dir_io,
                                                    warm, work)
     PA = work[4:8]
     PB = work[8:12]
@@ -1011,6 +1014,19 @@ def smooth_finish(pair, tol, dir_io, warm, work, out):
     upper = math.sqrt(vv)
     if status != SEPARATED or not (upper > tol_abs):
         return -1 - it
+    if primal_pair(kA, fA, kB, fB):
+        # the inscribed polytopes' closest points start Newton on the bodies' own closest points
+        xs = _simplex_point(PA, lam, k)
+        ys = _simplex_point(PB, lam, k)
+        ok, steps, up, lo = closest_points_newton(pair, (xs[0], xs[1], xs[2], ys[0], ys[1], ys[2]), tol_abs, tol_rel,
+                                                  PA[0], PB[0], work[13:DESCENT_ROWS], work[PROBE_ROW:PROBE_END],
+                                                  work[EPA_ROW:EPA_ROW + 2])
+        it += steps
+        if ok:
+            lam[0] = 1.0
+            v0, v1, v2 = PA[0, 0] - PB[0, 0], PA[0, 1] - PB[0, 1], PA[0, 2] - PB[0, 2]
+            _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), up * up, lo, it, mA, mB, tol_abs, dir_io, out)
+            return it
     ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(pair, (-v0 / upper, -v1 / upper, -v2 / upper),
                                                               0.0, tol_abs, tol_rel, PA[0], PB[0],
                                                               work[13:DESCENT_ROWS], warm)
@@ -1053,6 +1069,17 @@ def newton_on_patches(pair, v, vv, tol, scratch, dir_io, warm, work, out):
     _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), upper * upper, lower, evaluations, mA, mB, tol_abs, dir_io,
             out)
     return evaluations
+
+
+@kernel(inline="always")
+def _simplex_point(P, lam, k):
+    """The point of weights lam[:k] on the rows P[:k] (as gjk._combine), as a tuple."""
+    s0 = s1 = s2 = 0.0
+    for i in range(1, k):
+        s0 += lam[i] * (P[i, 0] - P[0, 0])
+        s1 += lam[i] * (P[i, 1] - P[0, 1])
+        s2 += lam[i] * (P[i, 2] - P[0, 2])
+    return P[0, 0] + s0, P[0, 1] + s1, P[0, 2] + s2
 
 
 @kernel(inline="always")

@@ -99,8 +99,9 @@ def run(config: Config) -> Output:
         "costs a PCH query plus the finishing (a few closed-form ball steps, or a ball centre against a "
         "polytope). A superellipsoid is smooth everywhere, so GJK would converge on it only linearly; between "
         f"two of them, spq runs GJK on polytopes inscribed in them ({INNER_DIRECTIONS} support points each; an overlap there is "
-        "theirs), then Newton's method on the contact normal with the supports' analytic derivatives, which "
-        "closes the 1e-10 m certificate in a few steps. Against an STP-BV, the same Newton steps start from the "
+        "theirs), then Newton's method on the two closest points (where neither is pointy, exponents at most "
+        "1.1: boxy faces are flat in space but make the support map jump) or on the contact normal with the "
+        "supports' analytic derivatives, which closes the 1e-10 m certificate in a few steps. Against an STP-BV, the same Newton steps start from the "
         "normal between the inscribed polytope and the STP-BV's grown hull, with the sphere and torus patches' "
         "derivatives; against a PCH (a flat side), the plain GJK runs.")
     md = [f"# Table I: proximity queries per second ({config.object})", "",
