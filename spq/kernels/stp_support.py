@@ -232,13 +232,21 @@ def ball_of_patch(f, ix, p, d0, d1, d2):
         k = o_faces + 3 * (p - V)
         return f[at(k)], f[at(k + 1)], f[at(k + 2)], f[F_BIG_R]
     k = o_tori + 7 * (p - V - F)
+    e0, e1, e2, a, w0, w1, w2, wn = torus_direction(f, k, d0, d1, d2)
+    return f[at(k)] - a * w0, f[at(k + 1)] - a * w1, f[at(k + 2)] - a * w2, f[F_BIG_R]
+
+
+@kernel(inline="always")
+def torus_direction(f, k, d0, d1, d2):
+    """(axis e, circle radius a, w, |d - (d.e) e|) of the torus stored at fdata offset k, w the unit
+    part of direction d across the axis (left unnormalised when d lies along it)."""
     e0, e1, e2, a = f[at(k + 3)], f[at(k + 4)], f[at(k + 5)], f[at(k + 6)]
     de = d0 * e0 + d1 * e1 + d2 * e2
     w0, w1, w2 = d0 - de * e0, d1 - de * e1, d2 - de * e2
     wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     if wn > 0.0:
         w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
-    return f[at(k)] - a * w0, f[at(k + 1)] - a * w1, f[at(k + 2)] - a * w2, f[F_BIG_R]
+    return e0, e1, e2, a, w0, w1, w2, wn
 
 
 @kernel
@@ -295,13 +303,8 @@ def stp_support_jacobian(f, ix, u0, u1, u2, start, out, jac):
             jac[i, j] = rad * ((1.0 if i == j else 0.0) - u[i] * u[j])
     V, F = ix[IDX_V], ix[IDX_F]
     if p >= V + F:
-        k = _offsets(ix)[1] + 7 * (p - V - F)
-        e0, e1, e2, a = f[at(k + 3)], f[at(k + 4)], f[at(k + 5)], f[at(k + 6)]
-        de = u0 * e0 + u1 * e1 + u2 * e2
-        w0, w1, w2 = u0 - de * e0, u1 - de * e1, u2 - de * e2
-        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        e0, e1, e2, a, w0, w1, w2, wn = torus_direction(f, _offsets(ix)[1] + 7 * (p - V - F), u0, u1, u2)
         if wn > 0.0:
-            w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
             t0, t1, t2 = e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
             s = a / wn
             tv = (t0, t1, t2)
