@@ -897,7 +897,8 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
                 return _done(out, used, dir_io)
         ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
         kb, mb, fb, ib = hull_core(kB, mB, fB, iB)
-        if not signed and smooth_against_stp(kA, fA, kB, fB):
+        newton_stp = smooth_against_stp(kA, fA, kB, fB)
+        if not signed and newton_stp:
             # the superellipsoid's inscribed polytope: the search then ends in a few steps, as
             # between polytopes, and its rough normal is all Newton's method needs
             if ka == SUPERELLIPSOID:
@@ -912,7 +913,7 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
         if n == 0.0:
             cold_direction(R, t, centres, dir_io)
         loose = LOOSE_REL_TOL_ONE_STP if (kA == STP) != (kB == STP) else LOOSE_REL_TOL
-        if smooth_against_stp(kA, fA, kB, fB):
+        if newton_stp:
             loose = INNER_REL_TOL  # Newton's method settles it from a rough normal
         hulls = (ka, ma, fa, ia, kb, mb, fb, ib, R, t)
         status, k, v0, v1, v2, vv, lower, it = descend_inline(hulls, (tol_abs, max(tol_rel, loose), max_iter), dir_io,
@@ -936,7 +937,7 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
             warm[WARM_HULL_OVERLAP] = 1
             return int(out[OUT_STATUS])
         warm[WARM_HULL_OVERLAP] = 0
-        if status == SEPARATED and vv > 0.0 and smooth_against_stp(kA, fA, kB, fB):
+        if status == SEPARATED and vv > 0.0 and newton_stp:
             used = newton_on_patches(pair, (v0, v1, v2), vv, tol, scratch, dir_io, warm, work, out)
             if used >= 0:
                 return _done(out, used + extra, dir_io)
@@ -995,9 +996,9 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
 def smooth_finish(pair, tol, dir_io, warm, work, out):
     """Two smooth bodies (see newton_normal.smooth_pair): GJK between their inner polytopes (an
     overlap there is theirs), then Newton's method on the closest points from the polytopes' where
-    neither body is pointy (closest_points_newton.primal_pair), else or if that fails Newton's
-    method on the normal from the polytopes' normal. Returns the iterations used (result in out), or -1 - iterations when the plain descent
-    has to finish (dir_io then holds the best normal found). The polytopes' simplex is the warm
+    neither body is pointy (closest_points_newton.primal_pair), else (or if that fails) Newton's
+    method on the normal from the polytopes' normal. Returns the iterations used (result in out), or
+    -1 - iterations when the plain descent has to finish (dir_io then holds the best normal found). The polytopes' simplex is the warm
     start kept in warm (the superellipsoids' own descent has none to keep)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     tol_abs, tol_rel, max_iter = tol
@@ -1023,9 +1024,7 @@ def smooth_finish(pair, tol, dir_io, warm, work, out):
                                                   work[EPA_ROW:EPA_ROW + 2])
         it += steps
         if ok:
-            lam[0] = 1.0
-            v0, v1, v2 = PA[0, 0] - PB[0, 0], PA[0, 1] - PB[0, 1], PA[0, 2] - PB[0, 2]
-            _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), up * up, lo, it, mA, mB, tol_abs, dir_io, out)
+            _finish_at_points(PA, PB, lam, up, lo, it, mA, mB, tol_abs, dir_io, out)
             return it
     ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(pair, (-v0 / upper, -v1 / upper, -v2 / upper),
                                                               0.0, tol_abs, tol_rel, PA[0], PB[0],
@@ -1034,9 +1033,7 @@ def smooth_finish(pair, tol, dir_io, warm, work, out):
     if not ok:
         dir_io[0], dir_io[1], dir_io[2] = m0, m1, m2
         return -1 - it
-    lam[0] = 1.0
-    v0, v1, v2 = PA[0, 0] - PB[0, 0], PA[0, 1] - PB[0, 1], PA[0, 2] - PB[0, 2]
-    _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), upper * upper, lower, it, mA, mB, tol_abs, dir_io, out)
+    _finish_at_points(PA, PB, lam, upper, lower, it, mA, mB, tol_abs, dir_io, out)
     return it
 
 
@@ -1064,11 +1061,17 @@ def newton_on_patches(pair, v, vv, tol, scratch, dir_io, warm, work, out):
     if not ok:
         dir_io[0], dir_io[1], dir_io[2] = m0, m1, m2
         return -1 - evaluations
+    _finish_at_points(PA, PB, lam, upper, lower, evaluations, mA, mB, tol_abs, dir_io, out)
+    return evaluations
+
+
+@kernel(inline="always")
+def _finish_at_points(PA, PB, lam, upper, lower, it, mA, mB, tol_abs, dir_io, out):
+    """The result of a Newton finish: the points PA[0] (on A) and PB[0] (on B, A's frame) upper apart,
+    with the certified lower bound."""
     lam[0] = 1.0
     v0, v1, v2 = PA[0, 0] - PB[0, 0], PA[0, 1] - PB[0, 1], PA[0, 2] - PB[0, 2]
-    _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), upper * upper, lower, evaluations, mA, mB, tol_abs, dir_io,
-            out)
-    return evaluations
+    _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), upper * upper, lower, it, mA, mB, tol_abs, dir_io, out)
 
 
 @kernel(inline="always")
