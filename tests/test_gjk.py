@@ -158,6 +158,27 @@ def test_bad_poses_raise_value_error(bad, what):
             spq.distances(a, a, batch, np.eye(4))
 
 
+def test_a_pose_of_another_shape_raises_once_the_machine_code_is_taken():
+    """After the first call a pair calls its kernel's machine code with any float64 2-D array, which
+    must refuse (not read past) any that is not a C-ordered 4x4, so the caller raises the shape error.
+    Oracle: two unit-half-extent boxes 3 m apart along x are 1 m apart."""
+    a = spq.Box(1, 1, 1)
+    pair = spq.Pair(a, a)
+    far = pose(t=(3.0, 0.0, 0.0))
+    assert pair.distance(np.eye(4), far).distance == pytest.approx(1.0)
+    assert spq.distance(a, a, np.eye(4), far).distance == pytest.approx(1.0)
+    for bad in (np.eye(3), np.zeros((4, 5)), np.zeros((0, 4)), np.eye(8)[:4], np.eye(4).ravel(), np.eye(4)[None]):
+        with pytest.raises(ValueError, match="4x4"):
+            pair.distance(np.eye(4), bad)
+        with pytest.raises(ValueError, match="4x4"):
+            pair.cold_distance(bad, far)
+        with pytest.raises(ValueError, match="4x4"):
+            spq.distance(a, a, bad, far)
+        with pytest.raises(ValueError, match="4x4"):
+            spq.distance(a, a, np.eye(4), bad)
+    assert spq.distance(a, a, np.eye(4), far).distance == pytest.approx(1.0)
+
+
 @pytest.mark.parametrize("kwargs", [dict(tol=-1), dict(tol=np.nan), dict(tol=0, rel_tol=0), dict(max_iter=0)])
 def test_bad_tolerances_raise_value_error(kwargs):
     with pytest.raises(ValueError):

@@ -33,6 +33,7 @@ POSE_OK = 0
 POSE_NOT_FINITE = 1
 POSE_BAD_BOTTOM_ROW = 2
 POSE_NOT_ROTATION = 3
+POSE_LAYOUT = 4  # query_one only: not a C-ordered 4x4 array; the caller converts it and asks again
 ROTATION_TOL = 1e-6  # same admissible error as spq.validation.ROTATION_TOL
 
 I_KIND_A, I_KIND_B, I_MAX_ITER, I_WARM = 0, 1, 2, 3
@@ -69,6 +70,11 @@ def keep_simplex_if_coherent(R, t, floats, warm):
         for c in range(3):
             floats[F_PREV_R + 3 * r + c] = R[r, c]
         floats[F_PREV_T + r] = t[r]
+
+
+@kernel(inline="always")
+def _c_4x4(T):
+    return T.shape[0] == 4 and T.shape[1] == 4 and T.strides[0] == 32 and T.strides[1] == 8
 
 
 @kernel
@@ -156,7 +162,14 @@ def query_one(state, packed_a, packed_b, TA, TB, coherent, out, wbuf):
     query) from scratch. wbuf: :func:`query_work`'s, which the caller keeps: a signed query's
     polytope needs megabytes, too many to allocate per call.
 
-    Returns a POSE_* code (> 0: nothing computed) or POSE_OK."""
+    TA, TB: float64 2-D arrays of any shape and strides (their machine code is called without
+    numba's type checks, see spq.query): POSE_LAYOUT unless each is C-ordered 4x4.
+
+    Returns a POSE_* code (> 0: nothing computed; +10 for TB) or POSE_OK."""
+    if not _c_4x4(TA):
+        return POSE_LAYOUT
+    if not _c_4x4(TB):
+        return POSE_LAYOUT + 10
     code = check_pose(TA)
     if code != POSE_OK:
         return code
