@@ -9,7 +9,8 @@ then one plane per face slot (unit normal, offset), the planes of an expansion's
 they are made, then three rows of support scratch, then five for the nearest point of a face to an origin outside P
 (its corners, weights, and a row of scratch), then two per vertex for the sphere D's boundary follows
 around it (centre, radius; direction, cosine of the cap's half-angle: spq.kernels.epa_caps), one
-per face slot for its certified offset (column 0), and three for the best exact witness (a, b,
+per face slot for its certified offset (column 0; column 1 the same while the face lives, +inf
+once it is dead: the key epa._least_face scans), and three for the best exact witness (a, b,
 normal; column 3 of the first: 1 once set).
 Ints: the count of free face slots, the count of expansions, whether the run uses sphere caps, then per face its corners (3), its neighbours (3: across the
 edge from corner k to corner k + 1), an alive flag and a visit stamp; the free slots; the horizon
