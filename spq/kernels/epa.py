@@ -114,7 +114,6 @@ CAPS_AFTER = 128  # steps of a run before it takes the sphere caps (see epa_run)
 STOP_CLOSED, STOP_ITERATIONS, STOP_VERTICES, STOP_NO_PROGRESS = 1, 2, 3, 4
 STOP_HORIZON, STOP_FACE_SLOTS, STOP_FAN_SLIVER, STOP_FAN_INWARD = 5, 6, 7, 8  # expansions not made
 PLANE_OK, PLANE_SLIVER, PLANE_INWARD = 0, 1, 2
-THIRD = 1.0 / 3.0
 
 # EPA outcomes
 EPA_RESULT = 0  # out holds the result (status FAILED if the bounds did not close): the origin in P, or
@@ -426,12 +425,11 @@ def _plane_of(work, a, b, c, c0, c1, c2):
     sides = (u0 * u0 + u1 * u1 + u2 * u2) * (v0 * v0 + v1 * v1 + v2 * v2)
     if not (nn * nn > SLIVER_SIN * SLIVER_SIN * sides):
         return PLANE_SLIVER, 0.0, 0.0, 0.0, 0.0
-    # one division where four would do: they held about a tenth of a signed PCH-PCH batch's time
-    # (perf, the divisions' latency); the reciprocals' rounding moves the plane by ulps
-    inv = 1.0 / nn
-    n0, n1, n2 = n0 * inv, n1 * inv, n2 * inv
+    # (divisions, not a reciprocal's products: those cost a second rounding, which moved the touching
+    # poses' largest error against the exact reference from 8.4e-16 to 3.6e-15 m for 4% of an overlap)
+    n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
     off = (n0 * (work[ra, 0] + work[rb, 0] + work[rc, 0]) + n1 * (work[ra, 1] + work[rb, 1] + work[rc, 1])
-           + n2 * (work[ra, 2] + work[rb, 2] + work[rc, 2])) * THIRD
+           + n2 * (work[ra, 2] + work[rb, 2] + work[rc, 2])) / 3.0
     if not (n0 * c0 + n1 * c1 + n2 * c2 < off):
         return PLANE_INWARD, 0.0, 0.0, 0.0, 0.0
     return PLANE_OK, n0, n1, n2, off
