@@ -48,6 +48,7 @@ from spq.kernels.gjk import (
     OVERLAPPING,
     SEPARATED,
     TOUCHING,
+    _combine,
     _finish,
     certify_overlap,
     clear_warm,
@@ -1017,8 +1018,9 @@ def smooth_finish(pair, tol, dir_io, warm, work, out):
         return -1 - it
     if primal_pair(kA, fA, kB, fB):
         # the inscribed polytopes' closest points start Newton on the bodies' own closest points
-        xs = _simplex_point(PA, lam, k)
-        ys = _simplex_point(PB, lam, k)
+        xs, ys = work[13], work[14]  # (the descent's rows past its simplex: Newton's scratch below)
+        _combine(PA, lam, k, xs, 0)
+        _combine(PB, lam, k, ys, 0)
         ok, steps, up, lo = closest_points_newton(pair, (xs[0], xs[1], xs[2], ys[0], ys[1], ys[2]), tol_abs, tol_rel,
                                                   PA[0], PB[0], work[13:DESCENT_ROWS], work[PROBE_ROW:PROBE_END],
                                                   work[EPA_ROW:EPA_ROW + 2])
@@ -1072,17 +1074,6 @@ def _finish_at_points(PA, PB, lam, upper, lower, it, mA, mB, tol_abs, dir_io, ou
     lam[0] = 1.0
     v0, v1, v2 = PA[0, 0] - PB[0, 0], PA[0, 1] - PB[0, 1], PA[0, 2] - PB[0, 2]
     _finish(SEPARATED, 1, (lam, PA, PB), (v0, v1, v2), upper * upper, lower, it, mA, mB, tol_abs, dir_io, out)
-
-
-@kernel(inline="always")
-def _simplex_point(P, lam, k):
-    """The point of weights lam[:k] on the rows P[:k] (as gjk._combine), as a tuple."""
-    s0 = s1 = s2 = 0.0
-    for i in range(1, k):
-        s0 += lam[i] * (P[i, 0] - P[0, 0])
-        s1 += lam[i] * (P[i, 1] - P[0, 1])
-        s2 += lam[i] * (P[i, 2] - P[0, 2])
-    return P[0, 0] + s0, P[0, 1] + s1, P[0, 2] + s2
 
 
 @kernel(inline="always")
