@@ -6,12 +6,14 @@ exact polyhedral/segment cores.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
-from spq.kernels.kinds import BOX, POLYTOPE, SEGMENT, STP, SUPERELLIPSOID
-from spq.kernels.stp_support import IDX_METHOD, stp_support
+from spq.kernels.kinds import BOX, POLYTOPE, SEGMENT, STP, STP_CORE, SUPERELLIPSOID
+from spq.kernels.stp_support import F_R, IDX_METHOD, stp_support
 from spq.kernels.superellipsoid_support import superellipsoid_support
 from spq.kernels.support import polytope_support_index
 
@@ -45,6 +47,15 @@ def support_local(kind, f, ix, d0, d1, d2, warm, out):
     if kind == SUPERELLIPSOID:
         superellipsoid_support(f, d0, d1, d2, out)
         return 0
+    if kind == STP_CORE:
+        p = stp_support(f, ix, ix[IDX_METHOD], d0, d1, d2, warm, out)
+        n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if n > 0.0:
+            k = f[F_R] / n
+            out[0] -= k * d0
+            out[1] -= k * d1
+            out[2] -= k * d2
+        return p
     if kind == SEGMENT:
         out[0] = 0.0
         out[1] = 0.0

@@ -36,8 +36,8 @@ from spq.kernels.epa_layout import EPA_BEST, EPA_CERTIFIED, EPA_SPHERES
 from spq.kernels.gjk import EPA_ROW
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
-from spq.kernels.kinds import POINT, STP
-from spq.kernels.stp_support import IDX_F, IDX_PATCH_OFFSETS, IDX_RECORDS, IDX_V, ball_of_patch, plane_offset
+from spq.kernels.kinds import POINT, STP, STP_CORE
+from spq.kernels.stp_support import F_R, IDX_F, IDX_PATCH_OFFSETS, IDX_RECORDS, IDX_V, ball_of_patch, plane_offset
 
 NO_SPHERE = -1.0  # a vertex's radius when D's boundary is no fixed sphere around it
 CAP_SLACK = 1e-7  # rad taken off a cap's half-angle: acos's rounding near 0 (about 1e-8)
@@ -52,9 +52,11 @@ def sphere_around(kind, f, ix, feature, u0, u1, u2):
     superellipsoid)."""
     if kind == POINT:
         return 0.0, 0.0, 0.0, 0.0, math.pi
-    if kind != STP or feature < 0 or feature >= ix[IDX_V] + ix[IDX_F]:
+    if (kind != STP and kind != STP_CORE) or feature < 0 or feature >= ix[IDX_V] + ix[IDX_F]:
         return 0.0, 0.0, 0.0, NO_SPHERE, 0.0
     c0, c1, c2, rad = ball_of_patch(f, ix, feature, u0, u1, u2)
+    if kind == STP_CORE:
+        rad -= f[F_R]  # the core's: a small sphere's is a point
     o_planes = plane_offset(ix)
     po = ix[IDX_PATCH_OFFSETS]
     alpha = math.pi
@@ -104,8 +106,9 @@ def support_sphere(pair, d0, d1, d2, fa, fb, work, i):
 
 @kernel(inline="always")
 def can_cap(kind):
-    """Whether a body of this kind can carry a cap: an STP-BV (its spheres) or a point (a sphere)."""
-    return kind == STP or kind == POINT
+    """Whether a body of this kind can carry a cap: an STP-BV or its core (their spheres) or a point (a
+    sphere)."""
+    return kind == STP or kind == STP_CORE or kind == POINT
 
 
 @kernel(inline="always")

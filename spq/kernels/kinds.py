@@ -33,6 +33,10 @@ POINT = 2
 SEGMENT = 3
 STP = 4  # sphere-torus-patch bounding volume: layout in kernels/stp_support.py
 SUPERELLIPSOID = 5  # convex superellipsoid (CSE-BV): layout above and in kernels/superellipsoid_support.py
+# An STP-BV's core: its ball hull at radius R - r, whose support is the STP-BV's less r along the unit
+# direction (the STP-BV is that core grown by r); layout as STP. Only the signed query's EPA takes it,
+# with r carried as a margin (kernels/query.py, signed_from_hulls).
+STP_CORE = 6
 
 CUBE_MAP_CELLS = 8  # least G, cells per cube-map face edge (6 * 8 * 8 = 384 cells); more on hulls of > 192 vertices
 

@@ -80,7 +80,7 @@ from spq.kernels.signed import (
 from spq.kernels.superellipsoid_support import FDATA_SIZE
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
-from spq.kernels.kinds import POINT, POLYTOPE, STP, SUPERELLIPSOID
+from spq.kernels.kinds import POINT, POLYTOPE, STP, STP_CORE, SUPERELLIPSOID
 from spq.kernels.frames import rot_to_a, rot_to_b, to_a, to_b
 from spq.kernels.torus_ball import aitken_on_circle, far_ball_centre, torus_against_segment
 from spq.kernels.stp_support import (
@@ -1180,14 +1180,21 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
                     pair, n0, n1, n2, tol, warm, work, iwork,
                     out, it + eit):
                 return int(out[OUT_STATUS])
-            # the EPA goes on with the bodies' supports, from the hulls' polytope (its own bound only:
-            # the result's witness points are its face's)
-            outcome, closed, upper, low, more, nv, top = epa_run(pair, tol, nv, top, (c0, c1, c2), math.inf, low, warm,
-                                                                 work, iwork, out)
+            # the EPA goes on from the hulls' polytope (its own bound only: the result's witness points
+            # are its face's) on the cores of the STP-BVs, their ball hulls at R - r (the polytope's
+            # points lie in them), with r as margin: the EPA need not grow the polytope by r again,
+            # and the cores' surfaces curve at R - r, not at r (tori and small spheres), so fewer
+            # expansions close the bound (on kuka_link_4's overlapping poses, STP-PCH 37 -> 32 and
+            # STP-STP 52 -> 44 on average)
+            core = core_pair(pair, hulls)
+            ra, rb = core[1] - mA, core[5] - mB  # the radii taken into the margins
+            outcome, closed, upper, low, more, nv, top = epa_run(core, tol, nv, top, (c0, c1, c2), math.inf,
+                                                                 low + (ra + rb), warm, work, iwork, out)
             eit += more
             if outcome == EPA_RESULT:
                 work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CONTINUED
                 out[OUT_ITERATIONS] = it + eit
+                add_margins(ra, rb, tol_abs, out)
                 settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out)
                 add_margins(mA, mB, tol_abs, out)
                 return int(out[OUT_STATUS])
@@ -1209,6 +1216,19 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
     settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out)
     add_margins(mA, mB, tol_abs, out)
     return int(out[OUT_STATUS])
+
+
+@kernel(inline="always")
+def core_pair(pair, hulls):
+    """The pair with the STP-BV sides that searched on their hulls (hull_core's polytope in hulls, whose
+    points lie in the core) as their cores, kind STP_CORE, their small radii r added to the margins:
+    the bodies' signed distance is the cores' less the margins. A side that searched on itself (an
+    STP-BV with no hull table) stays as it is: its points need not lie in its core."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    ka, kb = hulls[0], hulls[4]
+    core_a, ma = (STP_CORE, mA + fA[F_R]) if kA == STP and ka == POLYTOPE else (kA, mA)
+    core_b, mb = (STP_CORE, mB + fB[F_R]) if kB == STP and kb == POLYTOPE else (kB, mB)
+    return core_a, ma, fA, iA, core_b, mb, fB, iB, R, t
 
 
 @kernel
