@@ -1107,7 +1107,8 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
     hulls' normal is the grown hull's, and the body's own supports close the certificate at once.
     Otherwise the patches facing along the hulls' normal settle it (finish_on_patches, with the
     small-ball certificate of _certify_overlap) while the overlap is shallower than r; else the EPA
-    goes on from the hulls' polytope (its points lie inside the bodies) on the bodies' own supports."""
+    goes on from the hulls' polytope (its points lie inside the STP-BVs' cores, their ball hulls at
+    R - r) on the cores' supports, r carried as margin (core_pair)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     tol_abs, tol_rel, max_iter = tol
     ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
