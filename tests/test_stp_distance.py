@@ -132,6 +132,42 @@ def test_torus_ball_against_a_segment_is_the_brute_force_nearest(link4):
             assert abs(np.linalg.norm(x) - np.linalg.norm(y - circle, axis=1).max()) <= 1e-6
 
 
+def test_an_stp_bv_above_a_slab_is_the_plane_less_its_brute_force_support():
+    # A wide slab's top face is the nearest feature of an STP-BV hovering over its middle, so the
+    # distance is the face's height less the STP-BV's support along the face's normal: the brute-force
+    # support is the oracle. The STP-BV is turned so that a small sphere, a big sphere or a torus is
+    # lowest (random directions, the hull's facet normals, bisectors of adjacent facets).
+    from harness.references.stp_oracle import BruteForceSTP
+
+    points = np.random.default_rng(3).normal(size=(40, 3)) * [0.08, 0.05, 0.04]  # a link-sized cloud
+    stp = STPBV.from_points(points, 0.005, 2.0)
+    slab = spq.Polyhedron.from_points(np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0)
+                                                for z in (-0.05, 0.0)]))
+    tangents = _tangent_directions(points)
+    down = np.vstack([tangents[:20], tangents[200:230], tangents[-30:]])  # random, normals, bisectors
+    kinds = np.bincount(stp.patch_kind(stp.support_patches(down)[1]), minlength=3)
+    assert (kinds >= 5).all(), kinds  # small spheres, big spheres and tori lowest, each several times
+    n = len(down)
+    # rows (x, y, -d): the rotation that takes d to the world's -z
+    x = np.cross(down, [0.3, 0.5, 0.8])
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    rotations = np.stack([x, np.cross(-down, x), -down], axis=1)
+    low = np.einsum("nij,nj->ni", rotations, BruteForceSTP(points, 0.005, 2.0).support_many(down))
+    rng = np.random.default_rng(5)
+    expected = rng.uniform(0.001, 0.1, n)  # the lowest point's height above the slab
+    poses_s = np.tile(np.eye(4), (n, 1, 1))
+    poses_s[:, :3, :3] = rotations
+    poses_s[:, 0, 3], poses_s[:, 1, 3] = rng.uniform(-0.2, 0.2, n), rng.uniform(-0.2, 0.2, n)
+    poses_s[:, 2, 3] = expected - low[:, 2]
+    ground = np.tile(np.eye(4), (n, 1, 1))
+    for a, b, pa, pb in ((stp, slab, poses_s, ground), (slab, stp, ground, poses_s)):
+        got = spq.distances(a, b, pa, pb)
+        assert (got.status == "separated").all()
+        np.testing.assert_allclose(got.distance, expected, rtol=0, atol=1e-9)
+        assert (got.lower_bound <= expected + 1e-12).all()
+        np.testing.assert_allclose(np.linalg.norm(got.point_b - got.point_a, axis=1), got.distance, rtol=0, atol=1e-12)
+
+
 def _tangent_directions(points):
     """Unit directions that reach every kind of patch: random ones (mostly small spheres at small r),
     the hull's facet normals (big spheres) and the bisectors of adjacent facets (tori)."""
