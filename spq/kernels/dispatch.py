@@ -6,8 +6,6 @@ exact polyhedral/segment cores.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from spq.kernels.indexing import at
@@ -43,19 +41,12 @@ def support_local(kind, f, ix, d0, d1, d2, warm, out):
         out[2] = _sign_half(f[2], d2)
         return 0
     if kind == STP:
-        return stp_support(f, ix, ix[IDX_METHOD], d0, d1, d2, warm, out)
+        return stp_support(f, ix, ix[IDX_METHOD], d0, d1, d2, warm, 0.0, out)
     if kind == SUPERELLIPSOID:
         superellipsoid_support(f, d0, d1, d2, out)
         return 0
     if kind == STP_CORE:
-        p = stp_support(f, ix, ix[IDX_METHOD], d0, d1, d2, warm, out)
-        n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if n > 0.0:
-            k = f[F_R] / n
-            out[0] -= k * d0
-            out[1] -= k * d1
-            out[2] -= k * d2
-        return p
+        return stp_support(f, ix, ix[IDX_METHOD], d0, d1, d2, warm, f[F_R], out)
     if kind == SEGMENT:
         out[0] = 0.0
         out[1] = 0.0

@@ -259,14 +259,19 @@ def patch_support(f, ix, p, u0, u1, u2, out):
 
 
 @kernel
-def stp_support(f, ix, method, d0, d1, d2, start, out):
-    """Support point of the STP-BV along direction d (any length) into out; returns the patch."""
+def stp_support(f, ix, method, d0, d1, d2, start, inset, out):
+    """Support point of the STP-BV along direction d (any length) into out, less inset along the
+    unit direction (inset = r: the support of its core, the ball hull at R - r); returns the patch."""
     n = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     if n == 0.0:
         d0, n = 1.0, 1.0
     u0, u1, u2 = d0 / n, d1 / n, d2 / n
     p, _ = find_patch(f, ix, method, start, u0, u1, u2)
-    patch_support(f, ix, p, u0, u1, u2, out)
+    c0, c1, c2, rad = ball_of_patch(f, ix, p, u0, u1, u2)
+    rad -= inset
+    out[0] = c0 + rad * u0
+    out[1] = c1 + rad * u1
+    out[2] = c2 + rad * u2
     return p
 
 
