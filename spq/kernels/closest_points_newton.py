@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import SUPERELLIPSOID
 from spq.kernels.superellipsoid_support import F_A, F_B, F_C, F_E1, F_E2, superellipsoid_support
@@ -114,13 +115,14 @@ def _to_gauge(F, e1, g, H):
 
 @kernel(inline="always")
 def _m(mat, i, j):
-    """Entry (i, j) of the 5 x 6 augmented system, stored two rows of mat (10, 4) per row."""
-    return mat[2 * i + (j >> 2), j & 3]
+    """Entry (i, j) of the 5 x 6 augmented system, stored two rows of mat (10, 4) per row (unsigned
+    indices: the pivot's row is data, which numba would otherwise wrap as if it could be negative)."""
+    return mat[at(2 * i + (j >> 2)), at(j & 3)]
 
 
 @kernel(inline="always")
 def _set(mat, i, j, value):
-    mat[2 * i + (j >> 2), j & 3] = value
+    mat[at(2 * i + (j >> 2)), at(j & 3)] = value
 
 
 @kernel
@@ -150,8 +152,8 @@ def _solve(mat, step):
     for i in range(4, -1, -1):
         s = _m(mat, i, 5)
         for j in range(i + 1, 5):
-            s -= _m(mat, i, j) * step[j >> 2, j & 3]
-        step[i >> 2, i & 3] = s / _m(mat, i, i)
+            s -= _m(mat, i, j) * step[at(j >> 2), at(j & 3)]
+        step[at(i >> 2), at(i & 3)] = s / _m(mat, i, i)
     return True
 
 
