@@ -91,6 +91,7 @@ from spq.kernels.gjk import (
     closest_on_triangle,
     minkowski_support,
 )
+from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 
 SLIVER_SIN = 1e-7  # least sine of a face's largest angle: below, its plane is ill-defined in floating point
@@ -127,44 +128,44 @@ EPA_FLAT = 2  # D has no interior (flat cores): sd >= 0; out's normal is one acr
 # ------------------------------------------------------------------------------------------
 @kernel(inline="always")
 def _row(i):
-    return EPA_ROW + EPA_W + i
+    return at(EPA_ROW + EPA_W + i)
 
 
 @kernel(inline="always")
 def _corner(iw, f, k):
-    return iw[EPA_IOFF + EPA_CORNERS + 3 * f + k]
+    return iw[at(EPA_IOFF + EPA_CORNERS + 3 * f + k)]
 
 
 @kernel(inline="always")
 def _adj(iw, f, k):
-    return iw[EPA_IOFF + EPA_ADJ + 3 * f + k]
+    return iw[at(EPA_IOFF + EPA_ADJ + 3 * f + k)]
 
 
 @kernel(inline="always")
 def _set_adj(iw, f, k, g):
-    iw[EPA_IOFF + EPA_ADJ + 3 * f + k] = g
+    iw[at(EPA_IOFF + EPA_ADJ + 3 * f + k)] = g
 
 
 @kernel(inline="always")
 def _alive(iw, f):
-    return iw[EPA_IOFF + EPA_ALIVE + f] == 1
+    return iw[at(EPA_IOFF + EPA_ALIVE + f)] == 1
 
 
 @kernel(inline="always")
 def _set_alive(work, iw, f, alive):
     """Face f's flag, and its key for _least_face: its certified offset while it lives, else +inf."""
-    iw[EPA_IOFF + EPA_ALIVE + f] = 1 if alive else 0
-    work[EPA_ROW + EPA_CERTIFIED + f, 1] = certified(work, f) if alive else math.inf
+    iw[at(EPA_IOFF + EPA_ALIVE + f)] = 1 if alive else 0
+    work[at(EPA_ROW + EPA_CERTIFIED + f), 1] = certified(work, f) if alive else math.inf
 
 
 @kernel(inline="always")
 def _stamp(iw, f):
-    return iw[EPA_IOFF + EPA_STAMP + f]
+    return iw[at(EPA_IOFF + EPA_STAMP + f)]
 
 
 @kernel(inline="always")
 def _set_stamp(iw, f, s):
-    iw[EPA_IOFF + EPA_STAMP + f] = s
+    iw[at(EPA_IOFF + EPA_STAMP + f)] = s
 
 
 @kernel(inline="always")
@@ -178,14 +179,14 @@ def _vertex(work, i, w, pa, pb):
 
 @kernel(inline="always")
 def _set_features(iw, i, fa, fb):
-    iw[EPA_IOFF + EPA_FEATURES + 2 * i] = fa
-    iw[EPA_IOFF + EPA_FEATURES + 2 * i + 1] = fb
+    iw[at(EPA_IOFF + EPA_FEATURES + 2 * i)] = fa
+    iw[at(EPA_IOFF + EPA_FEATURES + 2 * i + 1)] = fb
 
 
 @kernel(inline="always")
 def feature(iw, i, side):
     """The support feature of A (side 0) or of B (side 1) that vertex i came from."""
-    return iw[EPA_IOFF + EPA_FEATURES + 2 * i + side]
+    return iw[at(EPA_IOFF + EPA_FEATURES + 2 * i + side)]
 
 
 @kernel(inline="always")
@@ -465,12 +466,12 @@ def _new_face(work, iw, top, a, b, c, n0, n1, n2, off):
     else:
         f = top
         top += 1
-    iw[EPA_IOFF + EPA_CORNERS + 3 * f] = a
-    iw[EPA_IOFF + EPA_CORNERS + 3 * f + 1] = b
-    iw[EPA_IOFF + EPA_CORNERS + 3 * f + 2] = c
-    iw[EPA_IOFF + EPA_ALIVE + f] = 1  # (set_certified below sets its key)
+    iw[at(EPA_IOFF + EPA_CORNERS + 3 * f)] = a
+    iw[at(EPA_IOFF + EPA_CORNERS + 3 * f + 1)] = b
+    iw[at(EPA_IOFF + EPA_CORNERS + 3 * f + 2)] = c
+    iw[at(EPA_IOFF + EPA_ALIVE + f)] = 1  # (set_certified below sets its key)
     _set_stamp(iw, f, 0)
-    row = EPA_ROW + EPA_PLANES + f
+    row = at(EPA_ROW + EPA_PLANES + f)
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
     set_certified(work, f, certified_offset(work, a, b, c, n0, n1, n2, off) if iw[EPA_IOFF + EPA_CAPS] else off)
     return f, top
@@ -525,7 +526,7 @@ def _edge_towards(iw, g, f):
 
 @kernel(inline="always")
 def _height(work, g, w):
-    row = EPA_ROW + EPA_PLANES + g
+    row = at(EPA_ROW + EPA_PLANES + g)
     return work[row, 0] * w[0] + work[row, 1] * w[1] + work[row, 2] * w[2] - work[row, 3]
 
 
@@ -541,44 +542,45 @@ def _horizon(work, iw, f0, w, stamp, eps):
     sp = 0
     _set_stamp(iw, f0, stamp)
     _set_alive(work, iw, f0, False)
-    iw[base + EPA_DEAD] = f0
-    iw[base + EPA_STACK] = f0
-    iw[base + EPA_STACK + 1] = 0
-    iw[base + EPA_STACK + 2] = 3
+    iw[at(base + EPA_DEAD)] = f0
+    iw[at(base + EPA_STACK)] = f0
+    iw[at(base + EPA_STACK + 1)] = 0
+    iw[at(base + EPA_STACK + 2)] = 3
     while sp >= 0:
         top = base + EPA_STACK + 3 * sp
-        if iw[top + 2] == 0:
+        if iw[at(top + 2)] == 0:
             sp -= 1
             continue
-        f = iw[top]
-        e = iw[top + 1]
-        iw[top + 1] = _next_edge(e)
-        iw[top + 2] -= 1
+        f = iw[at(top)]
+        e = iw[at(top + 1)]
+        iw[at(top + 1)] = _next_edge(e)
+        iw[at(top + 2)] -= 1
         g = _adj(iw, f, e)
         if _stamp(iw, g) == stamp and not _alive(iw, g):
             continue  # both sides dead: an inner edge
         if _stamp(iw, g) != stamp and _height(work, g, w) > eps:
             _set_stamp(iw, g, stamp)
             _set_alive(work, iw, g, False)
-            iw[base + EPA_DEAD + nd] = g
+            iw[at(base + EPA_DEAD + nd)] = g
             nd += 1
             sp += 1
             nxt = base + EPA_STACK + 3 * sp
-            iw[nxt] = g
-            iw[nxt + 1] = _next_edge(_edge_towards(iw, g, f))
-            iw[nxt + 2] = 2
+            iw[at(nxt)] = g
+            iw[at(nxt + 1)] = _next_edge(_edge_towards(iw, g, f))
+            iw[at(nxt + 2)] = 2
             continue
         _set_stamp(iw, g, stamp)
         h = base + EPA_HORIZON + 4 * nh
-        iw[h] = _corner(iw, f, e)
-        iw[h + 1] = _corner(iw, f, _next_edge(e))
-        iw[h + 2] = g
-        iw[h + 3] = _edge_towards(iw, g, f)
+        iw[at(h)] = _corner(iw, f, e)
+        iw[at(h + 1)] = _corner(iw, f, _next_edge(e))
+        iw[at(h + 2)] = g
+        iw[at(h + 3)] = _edge_towards(iw, g, f)
         nh += 1
     if nh < 3:
         return -1, nd
-    for i in range(nh):
-        if iw[base + EPA_HORIZON + 4 * i + 1] != iw[base + EPA_HORIZON + 4 * ((i + 1) % nh)]:
+    for i in range(nh):  # (the next edge's index without a modulo, an integer division)
+        j = i + 1 if i + 1 < nh else 0
+        if iw[at(base + EPA_HORIZON + 4 * i + 1)] != iw[at(base + EPA_HORIZON + 4 * j)]:
             return -1, nd
     return nh, nd
 
@@ -646,7 +648,7 @@ def _least_face(work, iw, top):
     # (the scan held about an eighth of a deep STP-PCH overlap's time, perf)
     best, bf = math.inf, -1
     for f in range(top):
-        o = work[EPA_ROW + EPA_CERTIFIED + f, 1]
+        o = work[at(EPA_ROW + EPA_CERTIFIED + f), 1]
         if o < best:
             best, bf = o, f
     return bf, best
@@ -870,7 +872,7 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         if cappable and it == CAPS_AFTER + 1:
             caps = True
             iw[EPA_IOFF + EPA_CAPS] = 1
-        row = EPA_ROW + EPA_PLANES + f
+        row = at(EPA_ROW + EPA_PLANES + f)
         h = _support_inline(pair, work[row, 0], work[row, 1], work[row, 2], warm, work)
         lower = max(lower, -h)
         if bounds_closed(upper, lower, tol_abs, tol_rel):

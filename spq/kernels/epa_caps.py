@@ -156,13 +156,13 @@ def certified_offset(work, a, b, c, n0, n1, n2, d):
 @kernel(inline="always")
 def set_certified(work, face, value):
     """A live face's certified offset, and its key for the least-face scan (epa._least_face)."""
-    work[EPA_ROW + EPA_CERTIFIED + face, 0] = value
-    work[EPA_ROW + EPA_CERTIFIED + face, 1] = value
+    work[at(EPA_ROW + EPA_CERTIFIED + face), 0] = value
+    work[at(EPA_ROW + EPA_CERTIFIED + face), 1] = value
 
 
 @kernel(inline="always")
 def certified(work, face):
-    return work[EPA_ROW + EPA_CERTIFIED + face, 0]
+    return work[at(EPA_ROW + EPA_CERTIFIED + face), 0]
 
 
 @kernel(inline="always")
