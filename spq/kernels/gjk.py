@@ -93,24 +93,27 @@ def closest_on_segment(W, i, j, lam):
     """Closest point of segment W[i]W[j] to the origin: barycentric weights into lam (slots i, j).
 
     Returns (mask of the slots used, squared distance)."""
+    # the slots as unsigned indices (spq.kernels.indexing): numba would wrap these arguments as if
+    # they could be negative at every read; the masks take the signed ones
+    ui, uj = at(i), at(j)
     _zero(lam)
-    t0 = W[j, 0] - W[i, 0]
-    t1 = W[j, 1] - W[i, 1]
-    t2 = W[j, 2] - W[i, 2]
+    t0 = W[uj, 0] - W[ui, 0]
+    t1 = W[uj, 1] - W[ui, 1]
+    t2 = W[uj, 2] - W[ui, 2]
     tt = t0 * t0 + t1 * t1 + t2 * t2
-    pt = W[i, 0] * t0 + W[i, 1] * t1 + W[i, 2] * t2
+    pt = W[ui, 0] * t0 + W[ui, 1] * t1 + W[ui, 2] * t2
     if tt <= 0.0 or pt >= 0.0:
-        lam[i] = 1.0
-        return 1 << i, W[i, 0] ** 2 + W[i, 1] ** 2 + W[i, 2] ** 2
+        lam[ui] = 1.0
+        return 1 << i, W[ui, 0] ** 2 + W[ui, 1] ** 2 + W[ui, 2] ** 2
     s = -pt / tt
     if s >= 1.0:
-        lam[j] = 1.0
-        return 1 << j, W[j, 0] ** 2 + W[j, 1] ** 2 + W[j, 2] ** 2
-    lam[i] = 1.0 - s
-    lam[j] = s
-    x0 = W[i, 0] + s * t0
-    x1 = W[i, 1] + s * t1
-    x2 = W[i, 2] + s * t2
+        lam[uj] = 1.0
+        return 1 << j, W[uj, 0] ** 2 + W[uj, 1] ** 2 + W[uj, 2] ** 2
+    lam[ui] = 1.0 - s
+    lam[uj] = s
+    x0 = W[ui, 0] + s * t0
+    x1 = W[ui, 1] + s * t1
+    x2 = W[ui, 2] + s * t2
     return (1 << i) | (1 << j), x0 * x0 + x1 * x1 + x2 * x2
 
 
@@ -137,12 +140,13 @@ def closest_on_triangle(W, i, j, k, lam, scratch):
     """Closest point of triangle W[i]W[j]W[k] to the origin (signed areas on the dominant plane).
 
     Returns (mask, squared distance); weights go to lam."""
-    u0 = W[j, 0] - W[i, 0]
-    u1 = W[j, 1] - W[i, 1]
-    u2 = W[j, 2] - W[i, 2]
-    w0 = W[k, 0] - W[i, 0]
-    w1 = W[k, 1] - W[i, 1]
-    w2 = W[k, 2] - W[i, 2]
+    ui, uj, uk = at(i), at(j), at(k)  # unsigned, as in closest_on_segment
+    u0 = W[uj, 0] - W[ui, 0]
+    u1 = W[uj, 1] - W[ui, 1]
+    u2 = W[uj, 2] - W[ui, 2]
+    w0 = W[uk, 0] - W[ui, 0]
+    w1 = W[uk, 1] - W[ui, 1]
+    w2 = W[uk, 2] - W[ui, 2]
     n0 = u1 * w2 - u2 * w1
     n1 = u2 * w0 - u0 * w2
     n2 = u0 * w1 - u1 * w0
@@ -156,7 +160,7 @@ def closest_on_triangle(W, i, j, k, lam, scratch):
         mask, d2 = _best_edge(W, i, j, lam, scratch, mask, d2, 0, i, k)
         return mask, d2
     # projection of the origin on the plane, then 2D signed areas on the dominant axis
-    h = (W[i, 0] * n0 + W[i, 1] * n1 + W[i, 2] * n2) / nn
+    h = (W[ui, 0] * n0 + W[ui, 1] * n1 + W[ui, 2] * n2) / nn
     p0 = h * n0
     p1 = h * n1
     p2 = h * n2
@@ -170,17 +174,17 @@ def closest_on_triangle(W, i, j, k, lam, scratch):
     else:
         x, y, mu = 0, 1, n2
         px, py = p0, p1
-    ix_, iy = W[i, x] - px, W[i, y] - py
-    jx, jy = W[j, x] - px, W[j, y] - py
-    kx, ky = W[k, x] - px, W[k, y] - py
+    ix_, iy = W[ui, at(x)] - px, W[ui, at(y)] - py
+    jx, jy = W[uj, at(x)] - px, W[uj, at(y)] - py
+    kx, ky = W[uk, at(x)] - px, W[uk, at(y)] - py
     c_i = jx * ky - jy * kx  # area (p, j, k)
     c_j = kx * iy - ky * ix_  # area (i, p, k)
     c_k = ix_ * jy - iy * jx  # area (i, j, p)
     if c_i * mu >= 0.0 and c_j * mu >= 0.0 and c_k * mu >= 0.0:
         _zero(lam)
-        lam[i] = c_i / mu
-        lam[j] = c_j / mu
-        lam[k] = c_k / mu
+        lam[ui] = c_i / mu
+        lam[uj] = c_j / mu
+        lam[uk] = c_k / mu
         return (1 << i) | (1 << j) | (1 << k), h * h * nn
     mask, d2 = 0, inf
     if c_i * mu < 0.0:
