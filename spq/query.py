@@ -200,6 +200,34 @@ def _as_pose_batch(poses, name: str) -> np.ndarray:
     return np.ascontiguousarray(arr)
 
 
+def _per_call(coherent: bool, doc: str):
+    """Pair.distance (coherent) or Pair.cold_distance, each a method of its own rather than a call
+    into a shared one (that call and _thread_work's were about 0.1 us of a 3 us query)."""
+
+    def query(self, pose_a, pose_b) -> DistanceResult:
+        machine = self._query_one
+        # Any float64 2-D arrays go straight to the machine code, which answers POSE_LAYOUT for one
+        # that is not a C-ordered 4x4 (checking that here took about 0.2 us of a 2.2 us plain call)
+        if machine is not None and type(pose_a) is _NDARRAY and type(pose_b) is _NDARRAY \
+                and pose_a.dtype is _F64 and pose_b.dtype is _F64 and pose_a.ndim == 2 and pose_b.ndim == 2:
+            work = getattr(_SCRATCH, "work", None)
+            if work is None:
+                work = _thread_work()
+            out = _empty(OUT_SIZE)
+            code = machine(self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, work)
+            if not code:
+                result = _new_result(DistanceResult)  # DistanceResult(out) without its __init__ call
+                result._out = out
+                return result
+            if code % 10 != kb.POSE_LAYOUT:
+                _raise_pose_error(code)
+        return self._plain_poses(_as_matrix(pose_a), _as_matrix(pose_b), coherent)
+
+    query.__name__ = query.__qualname__ = "distance" if coherent else "cold_distance"
+    query.__doc__ = doc
+    return query
+
+
 class Pair:
     """A pair of shapes queried repeatedly, keeping the warm start between calls.
 
@@ -226,33 +254,12 @@ class Pair:
         self._ints[kb.I_WARM:kb.I_SIGNED] = 0
         self._floats[kb.F_DIR:] = 0.0
 
-    def distance(self, pose_a, pose_b) -> DistanceResult:
-        """Distance between A at pose_a and B at pose_b (4x4 world poses)."""
-        return self._one(pose_a, pose_b, True)
-
-    def cold_distance(self, pose_a, pose_b) -> DistanceResult:
-        """As :meth:`distance`, from a cold start: the answer a new Pair gives, bit for bit, whatever
-        this pair was asked before; the warm start is left cleared."""
-        return self._one(pose_a, pose_b, False)
-
-    def _one(self, pose_a, pose_b, coherent: bool) -> DistanceResult:
-        query = self._query_one
-        # Any float64 2-D arrays go straight to the machine code, which answers POSE_LAYOUT for one
-        # that is not a C-ordered 4x4 (checking that here took about 0.2 us of a 2.2 us plain call)
-        if query is not None and type(pose_a) is _NDARRAY and type(pose_b) is _NDARRAY \
-                and pose_a.dtype is _F64 and pose_b.dtype is _F64 and pose_a.ndim == 2 and pose_b.ndim == 2:
-            out = _empty(OUT_SIZE)
-            code = query(self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, _thread_work())
-            if not code:
-                result = _new_result(DistanceResult)  # DistanceResult(out) without its __init__ call
-                result._out = out
-                return result
-            if code % 10 != kb.POSE_LAYOUT:
-                _raise_pose_error(code)
-        return self._plain_poses(_as_matrix(pose_a), _as_matrix(pose_b), coherent)
+    distance = _per_call(True, """Distance between A at pose_a and B at pose_b (4x4 world poses).""")
+    cold_distance = _per_call(False, """As :meth:`distance`, from a cold start: the answer a new Pair gives, bit for
+        bit, whatever this pair was asked before; the warm start is left cleared.""")
 
     def _plain_poses(self, pose_a, pose_b, coherent: bool) -> DistanceResult:
-        """_one for poses that _as_matrix made C-ordered 4x4 float64 arrays. The first call compiles
+        """A per-call query for poses that _as_matrix made C-ordered 4x4 float64 arrays. The first call compiles
         (or loads) the kernel, for these argument types, and keeps its machine code."""
         out = np.empty(OUT_SIZE)
         args = (self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, _thread_work())
@@ -318,9 +325,9 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
     last = getattr(_SCRATCH, "last", None)  # a loop over poses asks for the same pair, with the same objects
     if last is not None and last[0] is A and last[1] is B and last[2] is tol and last[3] is rel_tol \
             and last[4] is max_iter and last[5] is signed:  # then B is a Shape: the new order
-        # Pair._one inlined on the pair's machine code and arrays, kept flat in `last` (_plain_fast):
+        # Pair.cold_distance inlined on the pair's machine code and arrays, kept flat in `last` (_plain_fast):
         # the calls and attribute reads it saves are about 0.6 us of a 2 us plain call. Any other
-        # pose, and any error, takes Pair._one.
+        # pose, and any error, takes Pair.cold_distance.
         if type(pose_a) is _NDARRAY and type(pose_b) is _NDARRAY and pose_a.dtype is _F64 and pose_b.dtype is _F64 \
                 and pose_a.ndim == 2 and pose_b.ndim == 2:
             out = _empty(OUT_SIZE)
@@ -328,12 +335,12 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
                 result = _new_result(DistanceResult)  # DistanceResult(out) without its __init__ call
                 result._out = out
                 return result
-        return last[11]._one(pose_a, pose_b, False)
+        return last[11].cold_distance(pose_a, pose_b)
     if isinstance(pose_a, Shape) and not isinstance(B, Shape):  # the old order: (A, pose_a, B, pose_b)
         _warn_old_order()
         B, pose_a = pose_a, B
     pair = _plain_pair(A, B, tol, rel_tol, max_iter, signed)
-    result = pair._one(pose_a, pose_b, False)
+    result = pair.cold_distance(pose_a, pose_b)
     _SCRATCH.last = _plain_fast(A, B, tol, rel_tol, max_iter, signed, pair)
     return result
 
