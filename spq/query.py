@@ -223,7 +223,8 @@ def _per_call(coherent: bool, doc: str):
                 _raise_pose_error(code)
         return self._plain_poses(_as_matrix(pose_a), _as_matrix(pose_b), coherent)
 
-    query.__name__ = query.__qualname__ = "distance" if coherent else "cold_distance"
+    query.__name__ = "distance" if coherent else "cold_distance"
+    query.__qualname__ = "Pair." + query.__name__
     query.__doc__ = doc
     return query
 
