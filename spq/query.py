@@ -348,10 +348,8 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
 
 def _plain_fast(A, B, tol, rel_tol, max_iter, signed, pair: "Pair"):
     """What distance()'s next call on the same objects reads, flat: its key (A, B and the options,
-    compared by identity), then kb.query_one's machine code for the pair and the arrays it takes
-    (this thread's work among them), then the pair. None until the pair has its machine code."""
-    if pair._query_one is None:
-        return None
+    compared by identity), then kb.query_one's machine code for the pair (which the pair's first
+    call took) and the arrays it takes (this thread's work among them), then the pair."""
     return (A, B, tol, rel_tol, max_iter, signed, pair._query_one, pair._state, pair._packed_a, pair._packed_b,
             _thread_work(), pair)
 
