@@ -152,3 +152,27 @@ def test_the_report_refuses_an_unknown_size_and_compile_part(tmp_path):
         run_report(tmp_path, size="huge", only=["continuity"])
     with pytest.raises(ValueError, match="compile part"):
         compile_part("everything")
+
+
+def test_the_run_metadata_names_the_processor_and_its_caches(tmp_path):
+    """Ratios move with the host, so every report names its CPU: the model from /proc/cpuinfo (platform
+    leaves it empty on Linux), the CPU LLVM compiles for, and the data and unified caches from sysfs."""
+    from llvmlite import binding
+
+    from harness.report.meta import describe_cpu, run_metadata
+
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text("processor\t: 0\nvendor_id\t: Acme\nmodel name\t: Acme Turbo 9000\n\n"
+                       "processor\t: 1\nmodel name\t: Acme Turbo 9000\n")
+    for i, (level, kind, size) in enumerate([(1, "Data", "48K"), (1, "Instruction", "32K"), (3, "Unified", "16384K"),
+                                             (2, "Unified", "2048K")]):
+        folder = tmp_path / "cpu0" / "cache" / f"index{i}"
+        folder.mkdir(parents=True)
+        for name, value in (("level", level), ("type", kind), ("size", size)):
+            (folder / name).write_text(f"{value}\n")
+    llvm = binding.get_host_cpu_name()
+    assert describe_cpu(cpuinfo, tmp_path / "cpu0") == f"Acme Turbo 9000 (LLVM: {llvm}; L1d 48K, L2 2048K, L3 16384K)"
+    bare = describe_cpu(tmp_path / "no-such-file", tmp_path / "no-such-cpu")
+    assert bare.endswith(f"(LLVM: {llvm})")
+    machine = run_metadata()["machine"]
+    assert f"LLVM: {llvm}" in machine and machine.endswith(" cpus")
