@@ -53,7 +53,8 @@ _POSE_PROBLEM = {
 class DistanceResult:
     """Result of one query (world frame, metres).
 
-    distance: >= 0, 0 when overlapping; with ``signed=True``, -depth when overlapping.
+    distance: >= 0, 0 when overlapping; with ``signed=True``, -depth when overlapping (a float
+    attribute, the others are read from the result array on demand).
     point_a, point_b: witness points on A and B (NaN when overlapping, unless signed).
     normal: unit vector from A to B (for a signed overlap: the direction B must move).
     status: 'separated' | 'touching' (within tol of contact) | 'overlapping' | 'failed'.
@@ -61,12 +62,12 @@ class DistanceResult:
     distance (the signed distance when signed); distance == upper_bound.
     """
 
-    __slots__ = ("_out",)
+    __slots__ = ("_out", "distance")
 
     def __init__(self, out: np.ndarray):
         self._out = out
+        self.distance = float(out[OUT_DISTANCE])
 
-    distance = property(lambda self: float(self._out[OUT_DISTANCE]))
     point_a = property(lambda self: self._out[OUT_POINT_A:OUT_POINT_A + 3].copy())
     point_b = property(lambda self: self._out[OUT_POINT_B:OUT_POINT_B + 3].copy())
     normal = property(lambda self: self._out[OUT_NORMAL:OUT_NORMAL + 3].copy())
@@ -214,11 +215,15 @@ def _per_call(coherent: bool, doc: str):
             if work is None:
                 work = _thread_work()
             out = _empty(OUT_SIZE)
-            code = machine(self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, work)
-            if not code:
+            d = machine(self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, work)
+            if d == d:  # not NaN: a result
                 result = _new_result(DistanceResult)  # DistanceResult(out) without its __init__ call
                 result._out = out
+                result.distance = d
                 return result
+            code = kb.rejected_pose(out)
+            if code == kb.POSE_OK:  # the kernel's own NaN
+                return DistanceResult(out)
             if code % 10 != kb.POSE_LAYOUT:
                 _raise_pose_error(code)
         return self._plain_poses(_as_matrix(pose_a), _as_matrix(pose_b), coherent)
@@ -265,12 +270,14 @@ class Pair:
         out = np.empty(OUT_SIZE)
         args = (self._state, self._packed_a, self._packed_b, pose_a, pose_b, coherent, out, _thread_work())
         if self._query_one is not None:
-            code = self._query_one(*args)
+            d = self._query_one(*args)
         else:
-            code = kb.query_one(*args)
+            d = kb.query_one(*args)
             self._query_one = _machine_code(kb.query_one, args)
-        if code:
-            _raise_pose_error(code)
+        if d != d:
+            code = kb.rejected_pose(out)
+            if code:
+                _raise_pose_error(code)
         return DistanceResult(out)
 
     def distances(self, poses_a, poses_b, coherent: bool = True, workers: int = 1) -> BatchDistances:
@@ -332,9 +339,11 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
         if type(pose_a) is _NDARRAY and type(pose_b) is _NDARRAY and pose_a.dtype is _F64 and pose_b.dtype is _F64 \
                 and pose_a.ndim == 2 and pose_b.ndim == 2:
             out = _empty(OUT_SIZE)
-            if not last[6](last[7], last[8], last[9], pose_a, pose_b, False, out, last[10]):
+            d = last[6](last[7], last[8], last[9], pose_a, pose_b, False, out, last[10])
+            if d == d:  # not NaN: a result (a rejected pose, or the kernel's own NaN, takes the way below)
                 result = _new_result(DistanceResult)  # DistanceResult(out) without its __init__ call
                 result._out = out
+                result.distance = d
                 return result
         return last[11].cold_distance(pose_a, pose_b)
     if isinstance(pose_a, Shape) and not isinstance(B, Shape):  # the old order: (A, pose_a, B, pose_b)

@@ -20,6 +20,7 @@ from spq.kernels.gjk import (
     OUT_NORMAL,
     OUT_POINT_A,
     OUT_POINT_B,
+    OUT_STATUS,
     OUT_UPPER,
     WARM_COUNT,
     WARM_SIZE,
@@ -165,24 +166,37 @@ def query_one(state, packed_a, packed_b, TA, TB, coherent, out, wbuf):
     TA, TB: float64 2-D arrays of any shape and strides (their machine code is called without
     numba's type checks, see spq.query): POSE_LAYOUT unless each is C-ordered 4x4.
 
-    Returns a POSE_* code (> 0: nothing computed; +10 for TB) or POSE_OK."""
+    Returns out[OUT_DISTANCE], so that the caller's result holds the distance without reading it
+    back from out (a numpy element read costs about 80 ns of a 2 us call); NaN when a pose is
+    rejected, nothing computed, and out[OUT_STATUS] = -(its POSE_* code, +10 for TB)."""
+    code = POSE_OK
     if not _c_4x4(TA):
-        return POSE_LAYOUT
-    if not _c_4x4(TB):
-        return POSE_LAYOUT + 10
-    code = check_pose(TA)
+        code = POSE_LAYOUT
+    elif not _c_4x4(TB):
+        code = POSE_LAYOUT + 10
+    else:
+        code = check_pose(TA)
+        if code == POSE_OK:
+            code = check_pose(TB)
+            if code != POSE_OK:
+                code += 10
     if code != POSE_OK:
-        return code
-    code = check_pose(TB)
-    if code != POSE_OK:
-        return code + 10
+        out[OUT_STATUS] = -code
+        return math.nan
     fA, iA = unpack_shape(packed_a)
     fB, iB = unpack_shape(packed_b)
     scratch = (state[PAIR_R:PAIR_T].reshape((3, 3)), state[PAIR_T:PAIR_INTS],
                wbuf[:WORK_ROWS * 4].reshape((WORK_ROWS, 4)), wbuf[WORK_ROWS * 4:].view(np.int64))
     posed_query(fA, iA, fB, iB, state[PAIR_INTS:PAIR_SIZE].view(np.int64), state[:FLOATS_SIZE], TA, TB, coherent,
                 scratch, out)
-    return POSE_OK
+    return out[OUT_DISTANCE]
+
+
+def rejected_pose(out) -> int:
+    """The POSE_* code (+10 for TB) that :func:`query_one` left in out when it returned NaN, or
+    POSE_OK if it computed a result (a NaN distance of its own)."""
+    status = out[OUT_STATUS]
+    return int(-status) if status < 0 else POSE_OK
 
 
 def query_work() -> np.ndarray:

@@ -57,7 +57,7 @@ def status_of(sd, tol_abs):
     return SEPARATED
 
 
-@kernel
+@kernel(inline="always")
 def add_margins(mA, mB, tol_abs, out):
     """The cores' signed result in out becomes the bodies': points moved out by the margins along the
     normal, distance and bounds less mA + mB, status from the new distance (failed stays failed)."""
@@ -88,7 +88,7 @@ def unsigned_of_signed(out):
     return int(out[OUT_STATUS])
 
 
-@kernel
+@kernel(inline="always")
 def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
     """The descent's closest points (k simplex points, weights lam) as a signed core result: distance
     |p_B - p_A| (its upper bound), lower bound ``lower``, normal along p_B - p_A, or n where they
@@ -110,6 +110,25 @@ def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
     out[OUT_STATUS] = FAILED if status == FAILED else status_of(d, tol_abs)
 
 
+@kernel(inline="always")
+def _unit_or_x(d):
+    """d (3,) as a unit vector, (1, 0, 0) if it is zero: the normal of last resort."""
+    dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    if dn > 0.0:
+        return d[0] / dn, d[1] / dn, d[2] / dn
+    return 1.0, 0.0, 0.0
+
+
+@kernel(inline="always")
+def separated_result(k, lower, it, tol_abs, mA, mB, dir_io, work, out):
+    """signed_finish's result for a descent that ended SEPARATED (most signed queries), without its
+    call: the descent's points, margins included (see descent_result, add_margins)."""
+    n0, n1, n2 = _unit_or_x(dir_io)
+    descent_result(SEPARATED, k, work[12], work[4:8], work[8:12], lower, it, tol_abs, n0, n1, n2, out)
+    add_margins(mA, mB, tol_abs, out)
+    return int(out[OUT_STATUS])
+
+
 @kernel
 def signed_finish(pair, tol, status, k, vv, lower, it,
                   dir_io, warm, work, iwork, out):
@@ -121,12 +140,7 @@ def signed_finish(pair, tol, status, k, vv, lower, it,
     lam = work[12]
     PA = work[4:8]
     PB = work[8:12]
-    d0, d1, d2 = dir_io[0], dir_io[1], dir_io[2]
-    dn = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    if dn > 0.0:
-        d0, d1, d2 = d0 / dn, d1 / dn, d2 / dn
-    else:
-        d0, d1, d2 = 1.0, 0.0, 0.0
+    d0, d1, d2 = _unit_or_x(dir_io)
     if status == OVERLAPPING or status == TOUCHING or (status == FAILED and k > 0):
         # a descent that stalled (a smooth body within about tol_abs of touching) hands its simplex
         # on too: the polytope settles the side of the boundary the origin is on
