@@ -57,7 +57,7 @@ def status_of(sd, tol_abs):
     return SEPARATED
 
 
-@kernel(inline="always")
+@kernel
 def add_margins(mA, mB, tol_abs, out):
     """The cores' signed result in out becomes the bodies': points moved out by the margins along the
     normal, distance and bounds less mA + mB, status from the new distance (failed stays failed)."""
@@ -88,7 +88,7 @@ def unsigned_of_signed(out):
     return int(out[OUT_STATUS])
 
 
-@kernel(inline="always")
+@kernel
 def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
     """The descent's closest points (k simplex points, weights lam) as a signed core result: distance
     |p_B - p_A| (its upper bound), lower bound ``lower``, normal along p_B - p_A, or n where they
