@@ -179,6 +179,32 @@ def test_a_pose_of_another_shape_raises_once_the_machine_code_is_taken():
     assert spq.distance(a, a, np.eye(4), far).distance == pytest.approx(1.0)
 
 
+@pytest.mark.parametrize("signed", [False, True])
+def test_a_bad_pose_value_raises_on_the_machine_code_path_too(signed):
+    """Once a pair calls its kernel's machine code directly, a 4x4 float64 pose with bad values comes
+    back as a NaN distance with its code in the result array, which must still raise the pose's own
+    error (naming the pose), and a good pose must still give a float distance. Oracle: two
+    unit-half-extent boxes 3 m apart along x are 1 m apart."""
+    a = spq.Box(1, 1, 1)
+    pair = spq.Pair(a, a, signed=signed)
+    far = pose(t=(3.0, 0.0, 0.0))
+    calls = {"Pair.distance": pair.distance, "Pair.cold_distance": pair.cold_distance,
+             "spq.distance": lambda pa, pb: spq.distance(a, a, pa, pb, signed=signed)}
+    for call in calls.values():  # the first calls take the machine code
+        call(np.eye(4), far)
+    for name, call in calls.items():
+        for bad, what in ((np.full((4, 4), np.nan), "NaN"), (np.diag([1.0, 1.0, 1.0, 2.0]), "bottom row"),
+                          (np.diag([2.0, 1.0, 1.0, 1.0]), "not a rotation")):
+            with pytest.raises(ValueError, match=f"pose_b .*{what}"):
+                call(np.eye(4), bad)
+            with pytest.raises(ValueError, match=f"pose_a .*{what}"):
+                call(bad, far)
+        result = call(np.eye(4), far)
+        assert type(result.distance) is float, name
+        assert result.distance == pytest.approx(1.0, abs=1e-12), name
+        assert result.distance == result.upper_bound, name
+
+
 @pytest.mark.parametrize("kwargs", [dict(tol=-1), dict(tol=np.nan), dict(tol=0, rel_tol=0), dict(max_iter=0)])
 def test_bad_tolerances_raise_value_error(kwargs):
     with pytest.raises(ValueError):
