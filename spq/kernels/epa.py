@@ -73,6 +73,7 @@ from spq.kernels.epa_caps import (
     set_certified,
     support_sphere,
 )
+from spq.kernels.epa_curved import certifying_sides, clear_set, face_certificate, set_tried, tried
 from spq.kernels.gjk import (
     EPA_IOFF,
     EPA_ROW,
@@ -109,6 +110,8 @@ WALK_STEPS = 16  # steps across coplanar neighbours to the face holding the orig
 # polytope; what is left, along the regions' edges, took those about 3000.
 EPA_MAX_STEPS = EPA_MAX_VERTICES - 24
 EPA_STEPS_PER_ITERATION = 32
+CERT_WINDOW = 2e-3  # relative: a face is certified from curved sets only within this of the depth's bound
+# (further below, its cap is too wide for the sets; trying every least face cost more than it saved)
 CAPS_AFTER = 128  # steps of a run before it takes the sphere caps (see epa_run)
 
 # why the last run stopped, kept in the scratch (work[EPA_ROW + EPA_TMP, 3]) for diagnostics
@@ -474,6 +477,7 @@ def _new_face(work, iw, top, a, b, c, n0, n1, n2, off):
     row = at(EPA_ROW + EPA_PLANES + f)
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
     set_certified(work, f, certified_offset(work, a, b, c, n0, n1, n2, off) if iw[EPA_IOFF + EPA_CAPS] else off)
+    set_tried(work, f, False)
     return f, top
 
 
@@ -710,12 +714,24 @@ def _witness(work, iw, f, out):
 
 
 @kernel
-def _best_witness(work, out):
-    """Witness points and normal of the exact deepest support kept by _exact_deepest."""
+def _best_witness(work, sides, sd, out):
+    """Witness points and normal of the exact deepest support kept (by _exact_deepest, or along a
+    curved set's deepest normal: sides, epa_curved.certifying_sides, not 0), sd the signed distance.
+
+    Along a curved set's normal only the core's support point is the witness: the core is strictly
+    convex, the polytope is not, and its support set there is an edge or a face, whose vertex the
+    support returns (off the normal's line by up to the edge's length). Its witness is then the
+    core's point moved by sd along the normal, on the polytope's support plane within the bounds' gap."""
     for c in range(3):
         out[OUT_POINT_A + c] = work[EPA_ROW + EPA_BEST, c]
         out[OUT_POINT_B + c] = work[EPA_ROW + EPA_BEST + 1, c]
         out[OUT_NORMAL + c] = work[EPA_ROW + EPA_BEST + 2, c]
+    if sides == 1:  # A is the core
+        for c in range(3):
+            out[OUT_POINT_B + c] = out[OUT_POINT_A + c] + sd * out[OUT_NORMAL + c]
+    elif sides == 2:
+        for c in range(3):
+            out[OUT_POINT_A + c] = out[OUT_POINT_B + c] - sd * out[OUT_NORMAL + c]
 
 
 @kernel
@@ -849,10 +865,33 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
     iw[EPA_IOFF + EPA_CAPS] = 0
     closed = False
     stop = STOP_CLOSED
+    # an STP-BV's core against a polytope: the least face is certified from curved sets in D before it
+    # is expanded (spq.kernels.epa_curved), from the run's own supports (vertices from nv on)
+    sides = certifying_sides(kA, kB)
+    first = nv
+    clear_set(work)
+    # the deepest normal and depth of the deepest curved set that certified a face, whose support is
+    # taken once the polytope's bound has caught up with that depth (then it closes the gap)
+    pending = False
+    pd, pu0, pu1, pu2 = -math.inf, 0.0, 0.0, 0.0
     f, off = _least_face(work, iw, top)
     near = False  # whether upper is the distance to P (the origin outside it), witnesses in out
     while True:
         f, off = _least_face(work, iw, top)
+        if sides != 0 and off > 0.0 and off >= -lower * (1.0 - CERT_WINDOW) and not tried(work, f):
+            set_tried(work, f, True)
+            row = at(EPA_ROW + EPA_PLANES + f)
+            r, u0, u1, u2, depth = face_certificate(pair, sides, work, iw, f, first, work[row, 0], work[row, 1],
+                                                    work[row, 2], work[row, 3])
+            # a lift that leaves the face below the depth's upper bound less the tolerance only delays its
+            # expansion, unless it reaches the depth of a set deeper than any before (whose support may
+            # then lower that bound): such lifts are not taken
+            gap = tol_abs + tol_rel * abs(lower)
+            if r > off and (r >= -lower - gap or r >= max(pd, depth) - gap):
+                set_certified(work, f, r)
+                if depth > pd:
+                    pending, pd, pu0, pu1, pu2 = True, depth, u0, u1, u2
+                continue
         if off >= 0.0:
             upper = min(upper, -off)
             near = False
@@ -865,6 +904,14 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         if bounds_closed(upper, lower, tol_abs, tol_rel):
             closed = True
             break
+        if pending and off >= pd - (tol_abs + tol_rel * pd):
+            pending = False
+            if -pd > lower:
+                h = _support_inline(pair, pu0, pu1, pu2, warm, work)
+                if -h > lower:
+                    lower = -h
+                    keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], pu0, pu1, pu2)
+                continue
         if it >= steps or nv >= EPA_MAX_VERTICES:
             stop = STOP_ITERATIONS if it >= steps else STOP_VERTICES
             break
@@ -911,7 +958,7 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         return EPA_OUTSIDE, closed, upper, lower, it, nv, top
     if not near:
         if has_best(work) and certified(work, f) > work[EPA_ROW + EPA_PLANES + f, 3]:
-            _best_witness(work, out)  # the face's own points would miss the certified offset
+            _best_witness(work, sides, upper, out)  # the face's own points would miss the certified offset
         else:
             _witness(work, iw, f, out)
     out[OUT_DISTANCE] = upper

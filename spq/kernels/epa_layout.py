@@ -10,8 +10,9 @@ they are made, then three rows of support scratch, then five for the nearest poi
 (its corners, weights, and a row of scratch), then two per vertex for the sphere D's boundary follows
 around it (centre, radius; direction, cosine of the cap's half-angle: spq.kernels.epa_caps), one
 per face slot for its certified offset (column 0; column 1 the same while the face lives, +inf
-once it is dead: the key epa._least_face scans), and three for the best exact witness (a, b,
-normal; column 3 of the first: 1 once set).
+once it is dead: the key epa._least_face scans; column 2: 1 once curved sets were tried on it,
+spq.kernels.epa_curved), three for the best exact witness (a, b, normal; column 3 of the first: 1
+once set), and six for the deepest curved set found (epa_curved._keep_set).
 Ints: the count of free face slots, the count of expansions, whether the run uses sphere caps, then per face its corners (3), its neighbours (3: across the
 edge from corner k to corner k + 1), an alive flag and a visit stamp; the free slots; the horizon
 of an expansion (4 per edge: from, to, outside face, that face's edge); the walk's stack (3 per
@@ -39,7 +40,8 @@ EPA_NEAR = EPA_TMP + 3  # a face's corners (3 rows), the weights of its point ne
 EPA_SPHERES = EPA_NEAR + 5 + PAD_ROWS
 EPA_CERTIFIED = EPA_SPHERES + 2 * EPA_MAX_VERTICES + PAD_ROWS
 EPA_BEST = EPA_CERTIFIED + EPA_MAX_FACES + PAD_ROWS
-EPA_FLOAT_ROWS = EPA_BEST + 3
+EPA_SET = EPA_BEST + 3  # the deepest curved set found (spq.kernels.epa_curved), six rows
+EPA_FLOAT_ROWS = EPA_SET + 6
 
 # ints
 EPA_NFREE = 0
