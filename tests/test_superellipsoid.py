@@ -415,6 +415,57 @@ def test_support_jacobian_matches_central_differences_of_the_support(params):
     assert checked > 150
 
 
+def _newton_system(rng, scale):
+    """A random system of the closest-point Newton's shape (closest_points_newton._solve) as a dense
+    5 x 5 matrix and right-hand side, and in the kernel's (10, 4) layout."""
+    M = np.zeros((5, 5))
+    M[:3, :3] = rng.normal(size=(3, 3)) * scale[0]
+    M[:3, 3] = rng.normal(size=3) * scale[1]
+    M[:3, 4] = rng.normal(size=3) * scale[2]
+    M[3, :3] = rng.normal(size=3) * scale[1]
+    M[4, :4] = rng.normal(size=4) * scale[2]
+    rhs = rng.normal(size=5)
+    mat = np.zeros((13, 4))
+    for i in range(5):
+        for j in range(6):
+            mat[2 * i + (j >> 2), j & 3] = M[i, j] if j < 5 else rhs[i]
+    return M, rhs, mat
+
+
+@pytest.mark.parametrize("scale", [(1.0, 1.0, 1.0), (1e-6, 20.0, 15.0), (50.0, 0.1, 3.0)])
+def test_newton_system_solve_matches_lapack_on_every_pivot_order(scale):
+    from spq.kernels.closest_points_newton import _solve
+
+    rng = np.random.default_rng(5)
+    pivots = set()
+    checked = 0
+    for _ in range(300):
+        M, rhs, mat = _newton_system(rng, scale)
+        if np.linalg.cond(M) > 1e8:
+            continue
+        step = np.empty((2, 4))
+        assert _solve(mat, step)
+        x = np.array([step[0, 0], step[0, 1], step[0, 2], step[0, 3], step[1, 0]])
+        ref = np.linalg.solve(M, rhs)
+        np.testing.assert_allclose(x, ref, rtol=0, atol=1e-8 * np.abs(ref).max())
+        pivots.add((int(np.argmax(np.abs(M[:3, 4]))), int(np.argmax(np.abs(M[3, :3])))))
+        checked += 1
+    assert checked > 150 and len(pivots) == 9  # every row for dmu with every column for dx
+
+
+def test_newton_system_solve_reports_a_singular_system():
+    from spq.kernels.closest_points_newton import _solve
+
+    M, rhs, mat = _newton_system(np.random.default_rng(1), (1.0, 1.0, 1.0))
+    step = np.empty((2, 4))
+    flat = mat.copy()
+    flat[1::2, 0] = 0.0  # column 4 (dmu's) all zero: g_B vanishes
+    assert not _solve(flat, step)
+    flat = mat.copy()
+    flat[6, :3] = 0.0  # row 3 (g_A) all zero
+    assert not _solve(flat, step)
+
+
 @pytest.mark.parametrize("params", [(0.3, 0.2, 0.1, 0.1, 0.1), (0.3, 0.2, 0.1, 1.0, 1.0), (0.07, 0.12, 0.09, 0.3, 0.3),
                                     (0.077, 0.083, 0.137, 0.42, 1.02)])
 def test_implicit_function_gradient_and_hessian_match_central_differences(params):
