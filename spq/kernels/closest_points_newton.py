@@ -37,7 +37,7 @@ import math
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import SUPERELLIPSOID
-from spq.kernels.superellipsoid_support import F_A, F_B, F_C, F_E1, F_E2, superellipsoid_support
+from spq.kernels.superellipsoid_support import F_A, F_B, F_C, F_E1, F_E2, support_point
 
 PRIMAL_MAX_EXPONENT = 1.1  # both exponents of both bodies at most this: the primal Newton runs
 PRIMAL_STEPS = 8  # Newton steps before the caller's Newton on the normal takes over
@@ -63,7 +63,7 @@ def _powers(r, p):
     return rp, rp / r, rp / (r * r)
 
 
-@kernel
+@kernel(inline="always")  # (the two bodies' chains of powers then overlap)
 def implicit(f, x0, x1, x2, g, H):
     """F(x) of the superellipsoid f at the local point x, its gradient into g (3,) and its Hessian
     into H (3, 3); inf or NaN where they do not exist (a coordinate plane of an exponent above 1, the
@@ -197,7 +197,7 @@ def _solve(mat, step):
 
 
 @kernel
-def _certify(fA, fB, R, t, x, y, FA, FB, scratch, best_a, best_b):
+def _certify(fA, fB, R, t, x, y, FA, FB, best_a, best_b):
     """(upper, lower) of the points x (A's frame) and y (B's frame) scaled onto the surfaces by their
     gauges FA, FB, and of the slab along their normal; the scaled points (A's frame) into best_a,
     best_b."""
@@ -212,14 +212,14 @@ def _certify(fA, fB, R, t, x, y, FA, FB, scratch, best_a, best_b):
     if not (upper > 0.0):
         return upper, -math.inf
     n0, n1, n2 = n0 / upper, n1 / upper, n2 / upper
-    superellipsoid_support(fA, n0, n1, n2, scratch)
-    top_a = n0 * scratch[0] + n1 * scratch[1] + n2 * scratch[2]
+    s0, s1, s2 = support_point(fA, n0, n1, n2)
+    top_a = n0 * s0 + n1 * s1 + n2 * s2
     b0 = -(R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2)
     b1 = -(R[0, 1] * n0 + R[1, 1] * n1 + R[2, 1] * n2)
     b2 = -(R[0, 2] * n0 + R[1, 2] * n1 + R[2, 2] * n2)
-    superellipsoid_support(fB, b0, b1, b2, scratch)
+    s0, s1, s2 = support_point(fB, b0, b1, b2)
     # n . (R s + t) = -(b . s) + n . t
-    bottom_b = -(b0 * scratch[0] + b1 * scratch[1] + b2 * scratch[2]) + n0 * t[0] + n1 * t[1] + n2 * t[2]
+    bottom_b = -(b0 * s0 + b1 * s1 + b2 * s2) + n0 * t[0] + n1 * t[1] + n2 * t[2]
     return upper, bottom_b - top_a
 
 
@@ -267,7 +267,7 @@ def closest_points_newton(pair, start, tol_abs, tol_rel, best_a, best_b, work, m
             lam = gap / math.sqrt(gA[0] ** 2 + gA[1] ** 2 + gA[2] ** 2)
             mu = gap / math.sqrt(gB[0] ** 2 + gB[1] ** 2 + gB[2] ** 2)
         if last <= CERTIFY_STEP * size:
-            upper, lower = _certify(fA, fB, R, t, (x0, x1, x2), (yb0, yb1, yb2), FA, FB, sup, best_a, best_b)
+            upper, lower = _certify(fA, fB, R, t, (x0, x1, x2), (yb0, yb1, yb2), FA, FB, best_a, best_b)
             if lower > 0.0 and upper - lower <= tol_abs + tol_rel * upper:
                 return True, steps, upper, lower
         # Newton's system, with dy = A1 dx + g_A dlam - r1 (its first block row) put into the others:

@@ -125,30 +125,29 @@ def superellipsoid_support(f, d0, d1, d2, out):
     The direction needs no normalisation (any positive scale gives the same point). A zero direction
     gives the pole (0, 0, c); a NaN direction gives NaN.
     """
+    out[0], out[1], out[2] = support_point(f, d0, d1, d2)
+
+
+@kernel(inline="always")
+def support_point(f, d0, d1, d2):
+    """superellipsoid_support's point as a tuple, inlined: a caller that takes two supports at once
+    (closest_points_newton's certificate) has their chains of logarithms and exponentials overlap."""
     a0, a1, a2 = abs(d0), abs(d1), abs(d2)
     vmax = max(a0, a1, a2)
     if not (vmax > 0.0):
         if vmax == 0.0:
-            out[0] = 0.0
-            out[1] = 0.0
-            out[2] = f[F_C]
-        else:
-            out[0] = out[1] = out[2] = math.nan
-        return
+            return 0.0, 0.0, f[F_C]
+        return math.nan, math.nan, math.nan
     inv = 1.0 / vmax  # scale first: no overflow in u for any finite direction
     u0 = f[F_A] * (a0 * inv)
     u1 = f[F_B] * (a1 * inv)
     u2 = f[F_C] * (a2 * inv)
     if f[F_E1] == 1.0 and f[F_E2] == 1.0:  # ellipsoid: q = 2, s = diag(a, b, c) u / |u|
         k = 1.0 / math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-        out[0] = math.copysign(f[F_A] * u0 * k, d0)
-        out[1] = math.copysign(f[F_B] * u1 * k, d1)
-        out[2] = math.copysign(f[F_C] * u2 * k, d2)
-        return
+        return (math.copysign(f[F_A] * u0 * k, d0), math.copysign(f[F_B] * u1 * k, d1),
+                math.copysign(f[F_C] * u2 * k, d2))
     w0, w1, wm, wz, _, _ = _octant_parts(f, u0, u1, u2)
-    out[0] = math.copysign(f[F_A] * w0 * wm, d0)
-    out[1] = math.copysign(f[F_B] * w1 * wm, d1)
-    out[2] = math.copysign(f[F_C] * wz, d2)
+    return math.copysign(f[F_A] * w0 * wm, d0), math.copysign(f[F_B] * w1 * wm, d1), math.copysign(f[F_C] * wz, d2)
 
 
 @kernel(inline="always")
