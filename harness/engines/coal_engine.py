@@ -44,25 +44,27 @@ class CoalPair(PreparedPair):
 
     def _query(self, pose_a: np.ndarray, pose_b: np.ndarray) -> EngineResult:
         tf_a, tf_b, result = self._tf_a, self._tf_b, self._result
-        tf_a.setRotation(pose_a[:3, :3])
-        tf_a.setTranslation(pose_a[:3, 3])
-        tf_b.setRotation(pose_b[:3, :3])
-        tf_b.setTranslation(pose_b[:3, 3])
+        tf_a.setTransform(pose_a[:3, :3], pose_a[:3, 3])
+        tf_b.setTransform(pose_b[:3, :3], pose_b[:3, 3])
         result.clear()
         raw = self._compute(tf_a, tf_b, self._request, result)
         return result_from_raw(raw, result.getNearestPoint1(), result.getNearestPoint2())
 
     def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        """coal's leanest loop: the rotations and translations split into contiguous arrays first (in
+        the timed call), then one setTransform per body and query. Four setters on slices of the 4x4
+        poses, as before stop 65, took 5.09 us a query against 4.23 (kuka_link_4, 20,000 poses)."""
         tf_a, tf_b, result, compute, request = self._tf_a, self._tf_b, self._result, self._compute, self._request
-        out = np.empty(len(poses_a))
-        for i, (pa, pb) in enumerate(zip(poses_a, poses_b)):
-            tf_a.setRotation(pa[:3, :3])
-            tf_a.setTranslation(pa[:3, 3])
-            tf_b.setRotation(pb[:3, :3])
-            tf_b.setTranslation(pb[:3, 3])
+        rot_a, rot_b = np.ascontiguousarray(poses_a[:, :3, :3]), np.ascontiguousarray(poses_b[:, :3, :3])
+        pos_a, pos_b = np.ascontiguousarray(poses_a[:, :3, 3]), np.ascontiguousarray(poses_b[:, :3, 3])
+        out = []
+        append = out.append
+        for ra, ta, rb, tb in zip(rot_a, pos_a, rot_b, pos_b):
+            tf_a.setTransform(ra, ta)
+            tf_b.setTransform(rb, tb)
             result.clear()
-            out[i] = compute(tf_a, tf_b, request, result)
-        return out
+            append(compute(tf_a, tf_b, request, result))
+        return np.array(out, dtype=float)
 
 
 class CoalEngine(Engine):

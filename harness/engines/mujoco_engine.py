@@ -84,15 +84,24 @@ class MujocoPair(PreparedPair):
         return result_from_raw(raw, fromto[:3].copy(), fromto[3:].copy())
 
     def distance_loop(self, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
+        """MuJoCo's leanest loop: both geoms' frames laid out as MjData holds them, (N, 2, 3) positions
+        and (N, 2, 9) matrices (in the timed call), then two array writes per query. Four row writes
+        from slices of the 4x4 poses, as before stop 65, took 4.83 us a query against 2.91
+        (kuka_link_4, 20,000 poses)."""
         model, data, fromto, distance, distmax = self._model, self._data, self._fromto, self._distance, self._distmax
         ga, gb = poses_a @ self._offset_a, poses_b @ self._offset_b
-        xpos, xmat = data.geom_xpos, data.geom_xmat
-        out = np.empty(len(poses_a))
-        for i in range(len(poses_a)):
-            xpos[0], xmat[0] = ga[i, :3, 3], ga[i, :3, :3].ravel()
-            xpos[1], xmat[1] = gb[i, :3, 3], gb[i, :3, :3].ravel()
-            out[i] = distance(model, data, 0, 1, distmax, fromto)
-        return out
+        n = len(ga)
+        pos, mat = np.empty((n, 2, 3)), np.empty((n, 2, 9))
+        pos[:, 0], pos[:, 1] = ga[:, :3, 3], gb[:, :3, 3]
+        mat[:, 0], mat[:, 1] = ga[:, :3, :3].reshape(n, 9), gb[:, :3, :3].reshape(n, 9)
+        xpos, xmat = data.geom_xpos, data.geom_xmat  # (2, 3) and (2, 9): the model's two geoms
+        out = []
+        append = out.append
+        for p, m in zip(pos, mat):
+            xpos[...] = p
+            xmat[...] = m
+            append(distance(model, data, 0, 1, distmax, fromto))
+        return np.array(out, dtype=float)
 
 
 class MujocoEngine(Engine):
