@@ -40,6 +40,7 @@ def test_the_page_leads_with_the_verdict_and_the_four_pictures(report_dir):
     for engine in ("spq", "coal"):
         assert f"<td>{engine}</td>" in lead
     assert "PCH–PCH" in lead  # Table I
+    assert "the fastest peer per call" in lead
     links = set(re.findall(r"href='#(s\d+)'", lead))
     assert links and all(f"<h2 id='{a}'>" in page for a in links)
     # every chart has its one-line 'look at' caption; every table sits in a box that scrolls sideways
@@ -176,3 +177,16 @@ def test_the_run_metadata_names_the_processor_and_its_caches(tmp_path):
     assert bare.endswith(f"(LLVM: {llvm})")
     machine = run_metadata()["machine"]
     assert f"LLVM: {llvm}" in machine and machine.endswith(" cpus")
+
+
+def test_the_verdict_names_the_fastest_peer_per_call():
+    from harness.report.verdict import fastest_peer_per_call
+
+    rows = [("spq", "per-call", "all", 480.0), ("coal", "per-call", "all", 240.0), ("mujoco", "per-call", "all", 320.0),
+            ("spq", "batched", "all", 1100.0), ("fcl", "per-call", "overlapping", 900.0)]
+    bench = pd.DataFrame([{"pair": "PCH-PCH", "engine": e, "mode": m, "poses": p, "queries_per_s": q}
+                          for e, m, p, q in rows])
+    name, ratio = fastest_peer_per_call(bench)
+    assert name == "mujoco" and ratio == pytest.approx(1.5)  # batched and overlapping-only rows do not count
+    assert fastest_peer_per_call(bench[bench.engine == "spq"]) is None
+    assert fastest_peer_per_call(None) is None

@@ -77,6 +77,19 @@ def engine_table(out: Path) -> tuple[pd.DataFrame, dict]:
     return pd.DataFrame(rows), links
 
 
+def fastest_peer_per_call(bench: pd.DataFrame | None) -> tuple[str, float] | None:
+    """(name, spq's per-call rate over it) of the peer with the most PCH-PCH queries per second per
+    call on all poses (bench_pch.csv), or None without spq's row or a peer's."""
+    if bench is None:
+        return None
+    b = bench[(bench.pair == "PCH-PCH") & (bench.poses.astype(str) == "all") & (bench["mode"] == "per-call")]
+    ours, peers = b[b.engine == "spq"], b[b.engine != "spq"]
+    if not len(ours) or not len(peers):
+        return None
+    best = peers.loc[peers.queries_per_s.idxmax()]
+    return str(best.engine), float(ours.queries_per_s.iloc[0] / best.queries_per_s)
+
+
 def table1_table(out: Path) -> pd.DataFrame | None:
     t = _read(out, "table1.csv")
     if t is None:
@@ -113,7 +126,9 @@ def verdict(out: Path) -> Lead | None:
                 facts.append(f"STP-BV and superellipsoid depths within {oracle.max_abs_error_m.max():.2g} m of an "
                              "independent oracle")
             if "speed vs coal" in r:
-                facts.append(f"{r['speed vs coal']} coal's speed per call, {r['batched']} batched")
+                fastest = fastest_peer_per_call(_read(out, "bench_pch.csv"))
+                versus = f" ({fastest[1]:.2f}x {fastest[0]}'s, the fastest peer per call)" if fastest else ""
+                facts.append(f"{r['speed vs coal']} coal's speed per call{versus}, {r['batched']} batched")
             paragraphs.append("spq: " + "; ".join(facts) + ".")
     if table1 is not None:
         tables.append(("Table I (paper): queries per second between a link's PCH, STP-BV and CSE covers; time "
