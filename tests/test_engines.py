@@ -176,6 +176,13 @@ def test_the_timing_loop_gives_each_querys_raw_distance(engines, name):
     assert np.any(single > 0.0)
     np.testing.assert_allclose(loop, single, rtol=0.0, atol=1e-12)
     assert len(pair.distance_loop(np.zeros((0, 4, 4)), np.zeros((0, 4, 4)))) == 0
+    # and against an independent engine: spq's certified distance (signed, for the engines that sign)
+    exact = spq.distances(hull, hull, poses_a, poses_b, signed=True).distance
+    apart = exact > 1e-3
+    hull_tol = {"bullet": 1e-3}.get(name, DIST_ABS_TOL[name])  # bullet: as test_engines_agree_on_a_random_hull
+    np.testing.assert_allclose(loop[apart], exact[apart], rtol=0.0, atol=hull_tol)
+    if name in ("coal", "mujoco"):
+        np.testing.assert_allclose(loop[~apart], exact[~apart], rtol=0.0, atol=1e-5)
 
 
 @pytest.mark.parametrize("name", ENGINES)
