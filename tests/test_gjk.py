@@ -318,6 +318,42 @@ def test_a_pose_of_any_array_type_gives_the_answer_of_its_plain_copy():
             assert np.array_equal(plain._out, copy._out, equal_nan=True), k
 
 
+def test_results_kept_across_calls_and_threads_keep_their_own_values():
+    """Results kept over many per-call queries, made on two threads at once (each with its own
+    scratch, spq.query._SCRATCH), must each hold their own query's answer: no per-call path may hand
+    out a buffer that a later call writes over. The oracles: the batched call's fields, and the exact
+    reference's distance within each result's bounds."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    a, b = hull(31), hull(32)
+    rng = np.random.default_rng(5)
+    pa = np.stack([random_pose(rng, 0.0) for _ in range(24)])
+    pb = np.stack([random_pose(rng, 0.5) for _ in range(24)])
+    exact = [reference_distance(a, b, pa[i], pb[i]).signed_distance for i in range(len(pa))]
+
+    def kept(signed):
+        pair, path = spq.Pair(a, b, signed=signed), spq.Pair(a, b, signed=signed)
+        return ([spq.distance(a, b, x, y, signed=signed) for x, y in zip(pa, pb)],
+                [pair.cold_distance(x, y) for x, y in zip(pa, pb)],
+                [path.distance(x, y) for x, y in zip(pa, pb)])
+
+    with ThreadPoolExecutor(2) as pool:
+        runs = {signed: pool.submit(kept, signed) for signed in (False, True)}
+        runs = {signed: run.result() for signed, run in runs.items()}
+    for signed, (plain, cold, path) in runs.items():
+        batch = spq.distances(a, b, pa, pb, signed=signed)
+        along = spq.Pair(a, b, signed=signed).distances(pa, pb, coherent=True)
+        for ref, results in ((batch, plain), (batch, cold), (along, path)):
+            for i, r in enumerate(results):
+                assert r.status == ref.status[i] and r.iterations == ref.iterations[i], (signed, i)
+                for field in ("distance", "point_a", "point_b", "normal", "lower_bound", "upper_bound"):
+                    assert np.array_equal(getattr(r, field), getattr(ref, field)[i], equal_nan=True), (signed, i, field)
+                value = exact[i] if signed else max(exact[i], 0.0)
+                assert r.lower_bound - 1e-9 <= value <= r.upper_bound + 1e-9, (signed, i)
+        assert len({r.distance for r in plain}) == len(plain) or not signed  # distinct poses, distinct answers
+    assert 0 < sum(d < 0 for d in exact) < len(exact)  # both overlaps and separated poses
+
+
 def test_the_plain_call_takes_another_pair_when_an_option_changes():
     """spq.distance reuses the last pair only for the very same shapes and option objects: a new
     tolerance, mode or shape gets its own packing (the answers are a new Pair's, bit for bit)."""
