@@ -186,6 +186,15 @@ def mesh_arrays(shape) -> tuple[np.ndarray, np.ndarray]:
     return v, f
 
 
+def split_frames(poses_a: np.ndarray, poses_b: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Rotations ((N, 3, 3)) and translations ((N, 3)) of two (N, 4, 4) pose batches, each a contiguous
+    array: (rotations_a, translations_a, rotations_b, translations_b). The leanest per-query loops of
+    engines that take a rotation and a translation (coal, python-fcl) iterate over these, made in the
+    timed call."""
+    return (np.ascontiguousarray(poses_a[:, :3, :3]), np.ascontiguousarray(poses_a[:, :3, 3]),
+            np.ascontiguousarray(poses_b[:, :3, :3]), np.ascontiguousarray(poses_b[:, :3, 3]))
+
+
 class PreparedPair(ABC):
     """Two bodies loaded into an engine, ready to be queried at any poses."""
 
