@@ -9,7 +9,10 @@ absolute thresholds meaningful when both bodies are far from the world origin (N
 
 Stop rule: the search keeps the best lower bound, the separating-plane distance v.w/|v|, and stops
 when upper - lower <= tol_abs + tol_rel * upper, where upper = |v| is the distance of the current
-simplex point. The reported distance is upper; the true distance lies in [lower, upper].
+simplex point. The reported distance is upper; the true distance lies in [lower, upper]. A search
+that rounding stalls with the gap still open (near touching, where v's direction is off by about
+eps / distance) takes the bound along the normal of the facet or edge of D it stalled on
+(spq.kernels.facet_bound) before it reports FAILED.
 Overlap is declared only when a non-degenerate tetrahedron of support points holds the origin
 strictly inside; a distance within tol_abs of zero that cannot be so certified is "touching".
 """
@@ -25,6 +28,7 @@ from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, POLYTOPE
 from spq.kernels.dispatch import support_local
 from spq.kernels.epa_layout import EPA_FLOAT_ROWS, EPA_INT_SIZE
+from spq.kernels.facet_bound import facet_lower_bound
 
 SEPARATED = 0
 TOUCHING = 1
@@ -35,6 +39,7 @@ STATUS_NAMES = ("separated", "touching", "overlapping", "failed")
 DEGENERATE_AREA = 1e-24  # |n|^2 / scale^4 below which a triangle is treated as a segment set
 DEGENERATE_VOLUME = 1e-14  # |V| / scale^3 below which a tetrahedron is treated as its faces
 STALL_SLACK = 1e-9  # a stalled search still counts as converged if its gap is within this, relative
+STALLED = -1  # descend's own: a stall with the gap still open (never returned)
 
 # Layout of the result vector written by gjk_query (all in body A's frame).
 OUT_DISTANCE = 0
@@ -507,7 +512,7 @@ def descend(pair, tol, dir_in, warm, work):
             status = TOUCHING if ww <= tol_abs else SEPARATED
             break
         if _is_duplicate(PA, PB, k, pa, pb):
-            status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
+            status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else STALLED
             break
         _push(W, PA, PB, FI, k, pa, pb, warm)
         k += 1
@@ -527,9 +532,14 @@ def descend(pair, tol, dir_in, warm, work):
             # rounding stopped the descent: the bounds say whether the answer is good enough
             v0, v1, v2, vv = n0, n1, n2, nv
             upper = math.sqrt(vv)
-            status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
+            status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else STALLED
             break
         v0, v1, v2, vv = n0, n1, n2, nv
+    if status == STALLED:
+        # rounding's angle on a facet or edge of D (near touching): bound along its own normal
+        upper = math.sqrt(vv)
+        lower = facet_lower_bound(pair, W, k, v0, v1, v2, upper, lower, tmp)
+        status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else FAILED
     _save_simplex(FI, k, warm)
     return status, k, v0, v1, v2, vv, lower, it
 
