@@ -60,6 +60,17 @@ def _vertex(kind, f, i):
     return 0.0, 0.0, 0.0
 
 
+@kernel(inline="always")
+def _placed_vertex(kind, f, i, R, t, moved):
+    """Vertex i in A's frame: moved by (R, t) when ``moved`` (a vertex of B)."""
+    x0, x1, x2 = _vertex(kind, f, i)
+    if moved:
+        return (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0],
+                R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1],
+                R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2])
+    return x0, x1, x2
+
+
 @kernel
 def _facet_part(kind, f, ix, R, t, moved, u0, u1, u2, slack):
     """(count, three points): the first three vertices (A's frame: moved by (R, t) when ``moved``) whose
@@ -67,22 +78,14 @@ def _facet_part(kind, f, ix, R, t, moved, u0, u1, u2, slack):
     n = _vertex_count(kind, ix)
     best = -math.inf
     for i in range(n):
-        x0, x1, x2 = _vertex(kind, f, i)
-        if moved:
-            x0, x1, x2 = (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0],
-                          R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1],
-                          R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2])
+        x0, x1, x2 = _placed_vertex(kind, f, i, R, t, moved)
         best = max(best, u0 * x0 + u1 * x1 + u2 * x2)
     count = 0
     p = (0.0, 0.0, 0.0)
     q = (0.0, 0.0, 0.0)
     s = (0.0, 0.0, 0.0)
     for i in range(n):
-        x0, x1, x2 = _vertex(kind, f, i)
-        if moved:
-            x0, x1, x2 = (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0],
-                          R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1],
-                          R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2])
+        x0, x1, x2 = _placed_vertex(kind, f, i, R, t, moved)
         if u0 * x0 + u1 * x1 + u2 * x2 >= best - slack:
             if count == 0:
                 p = (x0, x1, x2)
