@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 
 from spq.kernels.dispatch import support_local
+from spq.kernels.frames import rot_to_b, to_a
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import BOX, POINT, POLYTOPE, SEGMENT
@@ -65,9 +66,7 @@ def _placed_vertex(kind, f, i, R, t, moved):
     """Vertex i in A's frame: moved by (R, t) when ``moved`` (a vertex of B)."""
     x0, x1, x2 = _vertex(kind, f, i)
     if moved:
-        return (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0],
-                R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1],
-                R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2])
+        return to_a(R, t, x0, x1, x2)
     return x0, x1, x2
 
 
@@ -131,13 +130,9 @@ def _plane_bound(pair, n0, n1, n2, v0, v1, v2, lower, tmp):
     n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
     support_local(kA, fA, iA, -n0, -n1, -n2, 0, tmp)
     a0, a1, a2 = tmp[0], tmp[1], tmp[2]
-    e0 = R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2  # n in B's frame: R^T n
-    e1 = R[0, 1] * n0 + R[1, 1] * n1 + R[2, 1] * n2
-    e2 = R[0, 2] * n0 + R[1, 2] * n1 + R[2, 2] * n2
+    e0, e1, e2 = rot_to_b(R, n0, n1, n2)
     support_local(kB, fB, iB, e0, e1, e2, 0, tmp)
-    b0 = R[0, 0] * tmp[0] + R[0, 1] * tmp[1] + R[0, 2] * tmp[2] + t[0]
-    b1 = R[1, 0] * tmp[0] + R[1, 1] * tmp[1] + R[1, 2] * tmp[2] + t[1]
-    b2 = R[2, 0] * tmp[0] + R[2, 1] * tmp[1] + R[2, 2] * tmp[2] + t[2]
+    b0, b1, b2 = to_a(R, t, tmp[0], tmp[1], tmp[2])
     return max(lower, n0 * (a0 - b0) + n1 * (a1 - b1) + n2 * (a2 - b2))
 
 
