@@ -189,8 +189,14 @@ def test_planted_slowdown_fails_and_advisory_passes(tmp_path, registry, capsys):
             break
     assert codes[-1] == 1, f"a 3x slowdown was not caught in {len(codes)} runs: {out}"
     assert "PCH-PCH per-call ratio_to_coal" in out and "regression" in out
-    assert cli.main(slow + ["--speed", "advisory"]) == 0
-    assert "slower (advisory)" in capsys.readouterr().out
+    # the advisory run is a fresh measurement, as noisy as the others: it must never fail, and must
+    # report the slowdown in one of up to three runs
+    for _ in range(3):
+        assert cli.main(slow + ["--speed", "advisory"]) == 0
+        out = capsys.readouterr().out
+        if "slower (advisory)" in out:
+            break
+    assert "slower (advisory)" in out, out
 
 
 # ------------------------------------------------------------------------------------------
