@@ -36,7 +36,7 @@ def shared_datasets() -> Path:
 def _kernels_compiled_in_parts():
     """Under pytest-xdist, each worker first compiles one part of spq's kernels (harness.report.compile)
     before its tests. On a fresh checkout numba's cache is empty, and without this both workers meet
-    the same kernels first and compile them side by side (numba's first compile is most of a cold
+    the same kernels first and compile them side by side (numba's first compile is a large share of a cold
     run's time, as in the report, which splits it the same way). Each then loads the other's part
     from the cache. A run without workers compiles as it goes."""
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
