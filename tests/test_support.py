@@ -75,6 +75,25 @@ def test_every_cells_candidates_hold_the_support_of_every_direction_in_it_border
                                atol=1e-15)
 
 
+@pytest.mark.parametrize("seed, n", [(8, 60), (9, 150)])
+def test_cell_candidates_are_the_vertices_no_other_vertex_beats_at_all_four_corners(seed, n):
+    """The cap search against the definition, by brute force: every pair of vertices in every cell."""
+    from spq.kernels.support import CANDIDATE_MARGIN, CELL_GROWTH
+
+    V = _random_hull(seed, n=n).vertices
+    G = 8
+    offsets, ids = cell_candidates(V, G)
+    corners = cube_cell_corners(G)
+    centre = corners.mean(axis=1, keepdims=True)
+    corners = centre + (corners - centre) * (1.0 + CELL_GROWTH)
+    eps = CANDIDATE_MARGIN * np.linalg.norm(V, axis=1).max()
+    M = np.einsum("ckj,vj->ckv", corners, V)  # (cells, 4, n)
+    for c in range(len(corners)):
+        beats = (M[c][:, :, None] > M[c][:, None, :] + eps).all(axis=0)  # [w, v]: w beats v
+        expected = np.flatnonzero(~beats.any(axis=0))
+        np.testing.assert_array_equal(ids[offsets[c]:offsets[c + 1]], expected)
+
+
 def test_cells_with_more_candidates_than_slots_keep_them_all():
     """A 40-gon prism: the cells around its cap normals hold all 40 cap vertices (more than the
     CELL_SLOTS of a cell), so their lists lie past the slots; supports there match brute force."""
