@@ -121,8 +121,11 @@ def test_torus_ball_against_a_segment_is_the_brute_force_nearest(link4):
                 assert abs(np.linalg.norm(other[:3]) - np.linalg.norm(found[0][:3])) <= 1e-12
                 np.testing.assert_allclose(other[3:], found[0][3:], rtol=0, atol=1e-9)
             x, y = np.split(found[1], 2)
-            points = s + lam[:, None] * (t - s)
-            far = np.linalg.norm(points[:, None, :] - circle[None], axis=2).max(axis=1)
+            rel = s + lam[:, None] * (t - s) - m
+            # each segment point's farthest sampled circle point, from |p - c|^2 = |p - m|^2 + a^2 - 2 (p - m).(c - m)
+            # (one product of two matrices, not a (segment points, circle points, 3) array of differences)
+            along = np.outer(rel @ b1, np.cos(angles)) + np.outer(rel @ b2, np.sin(angles))
+            far = np.sqrt(np.einsum("ij,ij->i", rel, rel) + a * a - 2.0 * a * along.min(axis=1))
             # no sampled segment point is nearer to the patch (1e-6: the circle's sampling error), and the
             # best sampled one is as near up to the segment's sampling
             assert far.min() - 1e-4 <= np.linalg.norm(x) <= far.min() + 1e-6

@@ -505,23 +505,23 @@ def test_inner_polytope_lies_inside_and_hugs_the_surface(params):
     assert (h_samples - h_inner).max() < 0.05 * max(params[:3])
 
 
-def _surface_point(theta, a, b, c, e1, e2):
-    """The parametric surface point at theta = (eta, w) (see parametric_surface)."""
-    eta, w = theta
-    spow = lambda t, e: math.copysign(abs(t) ** e, t)  # noqa: E731
-    return np.array([a * spow(math.cos(eta), e1) * spow(math.cos(w), e2),
-                     b * spow(math.cos(eta), e1) * spow(math.sin(w), e2), c * spow(math.sin(eta), e1)])
-
-
 def _parametric_distance(pa, pb, params_a, params_b, start):
     """min |x(theta_a) - y(theta_b)| over the two parametric surfaces (world frame), by Nelder-Mead
     from start = (eta_a, w_a, eta_b, w_b): an oracle that uses neither the support function nor GJK."""
     from scipy.optimize import minimize
 
+    def world_point(T, eta, w, a, b, c, e1, e2):  # in plain floats: the oracle's tens of thousands of calls
+        spow = lambda t, e: math.copysign(abs(t) ** e, t)  # noqa: E731
+        ce = spow(math.cos(eta), e1)
+        x, y, z = a * ce * spow(math.cos(w), e2), b * ce * spow(math.sin(w), e2), c * spow(math.sin(eta), e1)
+        return [r[0] * x + r[1] * y + r[2] * z + r[3] for r in T]
+
+    Ta, Tb = pa[:3].tolist(), pb[:3].tolist()
+
     def gap2(z):
-        x = pa[:3, :3] @ _surface_point(z[:2], *params_a) + pa[:3, 3]
-        y = pb[:3, :3] @ _surface_point(z[2:], *params_b) + pb[:3, 3]
-        return float(np.sum((x - y) ** 2))
+        x = world_point(Ta, z[0], z[1], *params_a)
+        y = world_point(Tb, z[2], z[3], *params_b)
+        return (x[0] - y[0]) ** 2 + (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2
 
     res = minimize(gap2, start, method="Nelder-Mead",
                    options={"xatol": 1e-13, "fatol": 1e-22, "maxiter": 20_000, "maxfev": 40_000})
