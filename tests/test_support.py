@@ -77,12 +77,17 @@ def test_every_cells_candidates_hold_the_support_of_every_direction_in_it_border
 
 @pytest.mark.parametrize("seed, n", [(8, 60), (9, 150)])
 def test_cell_candidates_are_the_vertices_no_other_vertex_beats_at_all_four_corners(seed, n):
-    """The cap search against the definition, by brute force: every pair of vertices in every cell."""
+    """Both cap searches (a scan, a walk over the hull's edges) against the definition, by brute force:
+    every pair of vertices in every cell."""
     from spq.kernels.support import CANDIDATE_MARGIN, CELL_GROWTH
 
-    V = _random_hull(seed, n=n).vertices
+    poly = _random_hull(seed, n=n)
+    V = poly.vertices
     G = 8
-    offsets, ids = cell_candidates(V, G)
+    scan = cell_candidates(V, G)
+    offsets, ids = cell_candidates(V, G, (poly.adjacency_offsets, poly.adjacency))
+    np.testing.assert_array_equal(scan[0], offsets)
+    np.testing.assert_array_equal(scan[1], ids)
     corners = cube_cell_corners(G)
     centre = corners.mean(axis=1, keepdims=True)
     corners = centre + (corners - centre) * (1.0 + CELL_GROWTH)
@@ -109,6 +114,24 @@ def test_cells_with_more_candidates_than_slots_keep_them_all():
     s = support_many(kd.kind, kd.fdata, kd.idata, dirs)
     np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, s), (dirs @ poly.vertices.T).max(axis=1), rtol=0,
                                atol=1e-15)
+
+
+@pytest.mark.parametrize("walk", [False, True])
+def test_more_candidates_than_the_first_guess_of_room_are_all_kept(walk):
+    """A 300-gon prism: its cap cells hold 300 vertices each, more than cell_candidates first makes
+    room for, so it runs again with room; supports from both searches' lists match brute force."""
+    angle = np.linspace(0.0, 2.0 * np.pi, 300, endpoint=False)
+    ring = np.column_stack([np.cos(angle), np.sin(angle), np.zeros(300)])
+    poly = spq.Polyhedron.from_points(np.vstack([ring + [0, 0, 0.3], ring - [0, 0, 0.3]]))
+    G = 8
+    offsets, ids = cell_candidates(poly.vertices, G, (poly.adjacency_offsets, poly.adjacency) if walk else None)
+    assert offsets[-1] > max(4 * 6 * G * G, 1024)
+    rng = np.random.default_rng(5)
+    dirs = np.vstack([[0, 0, 1], [0, 0, -1], rng.normal(size=(2000, 3)) * [1.0, 1.0, 3.0]])
+    cells = np.array([cube_cell(*d, G) for d in dirs])
+    best = [max(ids[offsets[c]:offsets[c + 1]], key=lambda v: d @ poly.vertices[v]) for d, c in zip(dirs, cells)]
+    np.testing.assert_allclose(np.einsum("ij,ij->i", dirs, poly.vertices[best]), (dirs @ poly.vertices.T).max(axis=1),
+                               rtol=0, atol=1e-15)
 
 
 @settings(max_examples=60, deadline=None)

@@ -84,6 +84,10 @@ class Polyhedron(Shape):
             self.face_normals = np.ascontiguousarray(planes[:, :3])
             self.face_offsets = np.ascontiguousarray(-planes[:, 3])
         self._kernel = None
+        # whether the triangles are qhull's (the boundary of the vertices' convex hull): the cube map
+        # is then built by walks over their edges (spq.kernels.support.cell_candidates), which needs
+        # that; triangles from elsewhere get the scan, which does not
+        self._hull_triangles = False
 
     # --- constructors -------------------------------------------------------------------------
     @classmethod
@@ -96,7 +100,9 @@ class Polyhedron(Shape):
         a, b, c = (vertices[faces[:, k]] for k in range(3))
         flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), planes[:, :3]) < 0
         faces[flip, 1], faces[flip, 2] = faces[flip, 2], faces[flip, 1].copy()
-        return cls(vertices, faces, planes)
+        poly = cls(vertices, faces, planes)
+        poly._hull_triangles = True
+        return poly
 
     @classmethod
     def from_mesh(cls, mesh) -> "Polyhedron":
@@ -115,7 +121,8 @@ class Polyhedron(Shape):
         if self._kernel is None:
             n = len(self.vertices)
             G = cube_map_size(n, kinds.CUBE_MAP_CELLS)
-            idata = cube_map_idata(n, G, *cell_candidates(self.vertices, G)).astype(kinds.IDATA_DTYPE)
+            graph = (self.adjacency_offsets, self.adjacency) if self._hull_triangles else None
+            idata = cube_map_idata(n, G, *cell_candidates(self.vertices, G, graph)).astype(kinds.IDATA_DTYPE)
             self._kernel = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), idata)
         return self._kernel
 
