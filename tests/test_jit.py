@@ -143,3 +143,62 @@ def test_no_kernel_takes_more_than_twelve_parameters():
                 long.append(f"{path.name}:{node.name} ({len(node.args.args)})")
     assert not long, long
     assert len(list(folder.glob("*.py"))) > 20  # not vacuous: the kernels were found
+
+
+_INLINE_PROBE = r'''
+import sys, numpy as np
+from spq.kernels.jit import kernel
+from numba.core.inline_closurecall import InlineWorker
+
+@kernel(inline="always", cache=False)
+def _leg(a, i, s):
+    t = 0.0
+    for k in range(i):
+        if a[k] > s:
+            t += a[k] * s
+        else:
+            t -= a[k]
+    return t
+
+@kernel(inline="always", cache=False)
+def _both(a, i):
+    return _leg(a, i, 0.5) + _leg(a, i // 2, 0.25) * _leg(a, i, 0.75)
+
+@kernel(cache=False)
+def _probe(a):
+    total = 0.0
+    for i in range(a.shape[0]):
+        total += _both(a, i) - _both(a, i // 3)
+    return total
+
+a = np.random.default_rng(0).random(40)
+print(getattr(InlineWorker.inline_function, "_spq_shared_scope", False))
+print(repr(_probe(a)))
+(llvm,) = _probe.inspect_llvm().values()
+print(llvm)
+'''
+
+
+def test_inlining_with_shared_scopes_compiles_the_same_code_as_numbas_own_copies(tmp_path):
+    """spq.kernels.jit's linear-time copy of an inlined kernel's IR: the same LLVM IR, byte for byte,
+    and the same result as numba's own (SPQ_NUMBA_INLINE_COPY=stock), each in a fresh process."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = tmp_path / "probe.py"
+    script.write_text(_INLINE_PROBE)
+    root = str(Path(__file__).resolve().parent.parent)
+    runs = {}
+    for mode in ("shared", "stock"):
+        env = {**os.environ, "PYTHONPATH": root, "SPQ_NUMBA_INLINE_COPY": mode}
+        env.pop("NUMBA_DISABLE_JIT", None)
+        done = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        runs[mode] = done.stdout.split("\n", 2)
+    assert runs["shared"][0] == "True" and runs["stock"][0] == "False"  # the copy was (not) taken over
+    assert runs["shared"][1] == runs["stock"][1]
+    assert re.search(r"@\"?_ZN[^\s(]*4_leg", runs["shared"][2]) is None  # inlined, not called
+    assert "fadd double" in runs["shared"][2]
+    assert runs["shared"][2] == runs["stock"][2]
