@@ -1,7 +1,12 @@
 """spq.kernels.jit: inline="hot" kernels are inlined into hot entry points and called from the others;
-spq.kernels.indexing: an unsigned index compiles without numba's wrap of negative indices."""
+spq.kernels.indexing: an unsigned index compiles without numba's wrap of negative indices; numba's
+inliner, sped up by spq.kernels.jit, compiles the same code as numba's own."""
 
+import os
 import re
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -182,11 +187,6 @@ print(llvm)
 def test_inlining_with_shared_scopes_compiles_the_same_code_as_numbas_own_copies(tmp_path):
     """spq.kernels.jit's linear-time copy of an inlined kernel's IR: the same LLVM IR, byte for byte,
     and the same result as numba's own (SPQ_NUMBA_INLINE_COPY=stock), each in a fresh process."""
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
     script = tmp_path / "probe.py"
     script.write_text(_INLINE_PROBE)
     root = str(Path(__file__).resolve().parent.parent)
