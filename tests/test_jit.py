@@ -176,8 +176,21 @@ def _probe(a):
         total += _both(a, i) - _both(a, i // 3)
     return total
 
+def _reference(a):  # the same sums in plain Python floats: an oracle apart from either compile
+    def leg(i, s):
+        t = 0.0
+        for k in range(i):
+            t = t + float(a[k]) * s if a[k] > s else t - float(a[k])
+        return t
+    both = lambda i: leg(i, 0.5) + leg(i // 2, 0.25) * leg(i, 0.75)
+    total = 0.0
+    for i in range(len(a)):
+        total += both(i) - both(i // 3)
+    return total
+
 a = np.random.default_rng(0).random(40)
 print(getattr(InlineWorker.inline_function, "_spq_shared_scope", False))
+assert abs(_probe(a) - _reference(a)) <= 1e-12 * abs(_reference(a)), (_probe(a), _reference(a))
 print(repr(_probe(a)))
 (llvm,) = _probe.inspect_llvm().values()
 print(llvm)
@@ -186,7 +199,8 @@ print(llvm)
 
 def test_inlining_with_shared_scopes_compiles_the_same_code_as_numbas_own_copies(tmp_path):
     """spq.kernels.jit's linear-time copy of an inlined kernel's IR: the same LLVM IR, byte for byte,
-    and the same result as numba's own (SPQ_NUMBA_INLINE_COPY=stock), each in a fresh process."""
+    and the same result as numba's own (SPQ_NUMBA_INLINE_COPY=stock), each in a fresh process, and
+    that result the plain-Python sum's."""
     script = tmp_path / "probe.py"
     script.write_text(_INLINE_PROBE)
     root = str(Path(__file__).resolve().parent.parent)
