@@ -17,6 +17,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from spq.stp.construction import build_topology, merge_duplicates
+from spq.stp.farthest import farthest_distances
 from spq.stp.topology import NO_FACE
 
 CUBE = np.array(list(itertools.product([-1.0, 1.0], repeat=3)))
@@ -374,6 +375,20 @@ def test_too_small_R_reports_the_smallest_admissible_R():
     assert _smallest_admissible_R([[0, 0, 0], [2, 0, 0], [1, 1.5, 0]], 1.0) == pytest.approx(
         1.0 + 1.0833333, abs=1e-5)
     assert _smallest_admissible_R([[0, 0, 0], [4, 0, 0], [2, 0.5, 0.5]], 1.0) == pytest.approx(3.0, abs=1e-5)
+
+
+@pytest.mark.parametrize("n, k, far", [(1, 1, 1.0), (7, 40, 0.0), (500, 300, 2.0), (2000, 5, 100.0)])
+def test_farthest_distances_match_every_pair_measured(n, k, far):
+    rng = np.random.default_rng(n + k)
+    x = rng.normal(size=(n, 3)) * [0.1, 0.05, 0.02] + [3.0, -1.0, 0.5]
+    c = x.mean(axis=0) + rng.normal(size=(k, 3)) * far
+    every_pair = np.sqrt(((x[:, None, :] - c[None, :, :]) ** 2).sum(axis=2))  # (n, k), the definition
+    got = farthest_distances(x, c)
+    assert got.shape == (k,)
+    np.testing.assert_allclose(got, every_pair.max(axis=0), rtol=4e-16, atol=0.0)
+    # strided points, and centres on points of the cloud (the distance to itself is 0, not the max)
+    on_cloud = np.sqrt(((x[:, None, :] - x[None, :3, :]) ** 2).sum(axis=2)).max(axis=0)
+    np.testing.assert_allclose(farthest_distances(x[::-1], x[:3]), on_cloud, rtol=4e-16, atol=0.0)
 
 
 # ------------------------------------------------------------------------------------------ speed

@@ -66,6 +66,7 @@ import math
 import numpy as np
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
+from spq.stp.farthest import farthest_distances
 from spq.stp.topology import NO_FACE, STPTopology
 from spq.validation import as_points
 
@@ -106,7 +107,6 @@ MAX_REPAIRS = 256
 # 264 sizes off the origin, gave radii straddling rho by up to 4e-12 D (D + rho) / shape
 TIE_BAND = 1e-10
 REPORT_DIGITS = 6  # significant digits of the smallest admissible R in the error message
-_CHUNK = 4_000_000  # point x centre pairs per block of the final check (memory, not speed)
 
 
 def build_topology(points, r: float, R: float) -> STPTopology:
@@ -709,20 +709,7 @@ def _crossings(mesh: _Mesh, in_: np.ndarray, dips: np.ndarray):
 
 def _misses(ctx: _Context, mesh: _Mesh, face_tri: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """By how much the ball of each face (F,) misses the farthest hull point (<= 0: holds them)."""
-    return _farthest(ctx.p[mesh.hull], _centres(ctx, mesh, face_tri, sigma)) - ctx.rho
-
-
-def _farthest(x: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    """max_i |x_i - c_k| (k,) over points x (n, 3) near the origin, in blocks. Expanded, the rounding
-    of a centre rho away is a few eps rho, inside ROUNDING_TOL."""
-    sq = (x * x).sum(axis=1)
-    far = np.empty(len(centres))
-    step = max(1, _CHUNK // len(x))
-    for s in range(0, len(centres), step):
-        c = centres[s:s + step]
-        d2 = sq[:, None] - 2.0 * x @ c.T + (c * c).sum(axis=1)[None, :]
-        far[s:s + step] = np.sqrt(np.maximum(d2.max(axis=0), 0.0))
-    return far
+    return farthest_distances(ctx.p[mesh.hull], _centres(ctx, mesh, face_tri, sigma)) - ctx.rho
 
 
 def _dips_into_q(ctx: _Context, mesh: _Mesh) -> np.ndarray:
@@ -774,7 +761,7 @@ def _face_arrays(ctx: _Context, mesh: _Mesh, face_tri: np.ndarray, sigma: np.nda
 
 def _verify_faces(ctx: _Context, faces: np.ndarray, centres: np.ndarray) -> None:
     """Check the definition: every point within rho (+ tolerance) of every face centre."""
-    far = _farthest(ctx.p, centres)
+    far = farthest_distances(ctx.p, centres)
     worst = int(np.argmax(far - ctx.rho))
     if far[worst] > ctx.rho + ctx.verify_tol:
         raise RuntimeError(f"face {faces[worst]} has a point at {far[worst]!r} from its centre, "
