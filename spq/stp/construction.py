@@ -446,7 +446,8 @@ def _solid_triangulation(ctx: _Context, joggle: bool = False) -> _Mesh:
     inner = tet_b >= 0
     tid[tet_b[inner], j_b[inner]] = np.nonzero(inner)[0]
 
-    orient, conflict = _orientations(p, simp, tet_a, j_a, tet_b, j_b, tri)
+    corners = _widest_corner(p, simp)  # (read by both the orientations and the circumcentres)
+    orient, conflict = _orientations(corners[2], simp, tet_a, j_a, tet_b, j_b, tri)
     # qhull's merged facets can leave tetrahedra overlapping, or leave some out (the vertical facets
     # of coplanar points in its lifting: flat ones pinch the triangulation's boundary at an edge
     # between four boundary triangles, others dent it): joggled points are in general position
@@ -464,7 +465,7 @@ def _solid_triangulation(ctx: _Context, joggle: bool = False) -> _Mesh:
     mesh.simp, mesh.nb, mesh.tid = simp, nb, tid
     mesh.tet = np.stack([tet_a, tet_b], axis=1)
     mesh.side_a = _APEX_SIDE[j_a] * orient[tet_a]
-    mesh.centre, mesh.excess, mesh.shape = _circumcentres(ctx, simp, lifted)
+    mesh.centre, mesh.excess, mesh.shape = _circumcentres(ctx, simp, lifted, corners)
     # a tetrahedron's circumradius is at least each of its triangles': one with a triangle wider than
     # rho is out, whatever its centre says (qhull's, for a flat tetrahedron on three collinear
     # points, comes from joggled points; the triangle read from the true ones has no circle)
@@ -489,7 +490,7 @@ def _boundary_is_manifold(boundary: np.ndarray) -> bool:
     return bool((count == 2).all())
 
 
-def _orientations(p, simp, tet_a, j_a, tet_b, j_b, tri) -> tuple[np.ndarray, bool]:
+def _orientations(vol, simp, tet_a, j_a, tet_b, j_b, tri) -> tuple[np.ndarray, bool]:
     """+-1 per tetrahedron (K,): the orientation of its vertex order, consistent across shared
     triangles (the apexes of two neighbours lie on opposite sides), and whether a clearly solid
     tetrahedron disagrees with its own volume's sign (the triangulation overlaps itself).
@@ -497,12 +498,12 @@ def _orientations(p, simp, tet_a, j_a, tet_b, j_b, tri) -> tuple[np.ndarray, boo
     It is propagated from the most solid tetrahedron over the neighbour graph, not read from each
     volume's sign: qhull's triangulation of a merged (cospherical) facet, or of joggled points read
     at their true positions, holds flat tetrahedra folded by rounding, whose volume has the sign of
-    noise; their neighbours say which side their apexes are on.
+    noise; their neighbours say which side their apexes are on. vol: the signed volumes of
+    _widest_corner.
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order
 
-    vol = _widest_corner(p, simp)[2]
     K = len(simp)
     inner = tet_b >= 0
     a, b = tet_a[inner], tet_b[inner]
@@ -559,7 +560,7 @@ def _widest_corner(p: np.ndarray, simp: np.ndarray):
     return tuple(best)
 
 
-def _circumcentres(ctx: _Context, simp: np.ndarray, lifted: np.ndarray):
+def _circumcentres(ctx: _Context, simp: np.ndarray, lifted: np.ndarray, corners):
     """Circumcentres (K, 3) of the tetrahedra (inf where there is none), how far each lies out of
     Q (K,): its squared circumradius less rho^2 and the power tolerance (<= 0: in, so that points on
     one rho-sphere count as in), and its shape (K,), |det| of its unit edge vectors.
@@ -568,10 +569,10 @@ def _circumcentres(ctx: _Context, simp: np.ndarray, lifted: np.ndarray):
     vectors scaled to unit length, so that a short edge, as between near-duplicate points, costs no
     accuracy) when it is well shaped and not part of a merged facet; otherwise it is qhull's
     (lifted), which the tetrahedra of a merged facet share. The radius is the largest distance to
-    its four points, which the centre's rounding can only increase.
+    its four points, which the centre's rounding can only increase. corners: _widest_corner's.
     """
     p = ctx.p
-    unit, length, vol, base = _widest_corner(p, simp)
+    unit, length, vol, base = corners
     shape = np.abs(vol)
     v0 = p[simp[np.arange(len(simp)), base]]
     finite = np.isfinite(lifted).all(axis=1)
