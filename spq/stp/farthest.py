@@ -34,6 +34,6 @@ def farthest_distances(x: np.ndarray, centres: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
     c = np.ascontiguousarray(centres, dtype=np.float64).reshape(-1, 3)
     out = np.empty(len(c))
-    # coordinates as three arrays: the inner loop then reads each contiguously (numba vectorises it)
+    # coordinates as three contiguous arrays: the inner loop then streams through each
     _farthest_into(np.ascontiguousarray(x[:, 0]), np.ascontiguousarray(x[:, 1]), np.ascontiguousarray(x[:, 2]), c, out)
     return out
