@@ -640,7 +640,7 @@ def _enclosing_radius(ctx: _Context, cand: _Candidates) -> float:
     centre = np.vstack([centre, 0.5 * (p[a] + p[b])])
     pts = p[cand.hull]
     for k in np.argsort(radius):
-        far = np.sqrt(((pts - centre[k]) ** 2).sum(axis=1).max())
+        far = float(farthest_distances(pts, centre[k:k + 1])[0])
         if far <= radius[k] + MEB_TOL * ctx.scale:
             return float(max(far, radius[k]))
     raise RuntimeError("no enclosing ball found among the farthest-point Voronoi features")
