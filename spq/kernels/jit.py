@@ -30,6 +30,7 @@ Importing this module also makes numba's copies of an inlined kernel's IR linear
 (:func:`_install_shared_scope_copies`): they were a third of compiling an entry point.
 """
 
+import collections
 import copy
 import hashlib
 import os
@@ -90,21 +91,25 @@ _install_cache_stamp()
 
 
 def _install_shared_scope_copies() -> None:
-    """Make numba's IR inliner copy a kernel's IR in linear time, not quadratic.
+    """Make numba's IR inliner copy a kernel's IR in linear time, and build it once per kernel.
 
-    For each ``inline="always"`` call site, numba (0.68) builds the callee's IR afresh and copies it
-    block by block with ``copy.deepcopy``, a fresh memo for each block. Every variable's copy then
-    copies its Scope, and with it every variable of the function, once per block: in an entry point
-    that inlines the whole query, those copies were a third of the compile (py-spy). The inliner
-    only reads that scope and adds the inlined names to it (it renames every variable into the
-    caller's scope), so while it inlines a function here, a variable's copy keeps its Scope.
+    For each ``inline="always"`` call site, numba (0.68) builds the callee's IR afresh (its untyped
+    passes, nested inlining included) and copies it block by block with ``copy.deepcopy``, a fresh
+    memo for each block. Every variable's copy then copies its Scope, and with it every variable of
+    the function, once per block: in an entry point that inlines the whole query, those copies were
+    a third of the compile (py-spy). The inliner only reads that scope and adds the inlined names to
+    it (it renames every variable into the caller's scope), so while it inlines a function here, a
+    variable's copy takes a copy of the Scope made once for that call site.
 
-    Only InlineWorker.inline_function (the ``inline=`` option of njit kernels, whose callee IR is
-    made for the one call site) shares; an overload's cached IR, inlined by inline_ir directly, is
-    copied as before. The compiled code is the same: query_one's and query_batch's LLVM IR (3.8 MB
-    each) were identical with and without this, but for the tag numba mangles into a name from the
-    ``inline="hot"`` option (a function, whose hash differs from process to process anyway), and it
-    compiled in two thirds of the time. SPQ_NUMBA_INLINE_COPY=stock leaves numba as it is."""
+    The callee's IR itself depends only on the function and the compiler's flags, so it is built
+    once and kept (the inliner copies it before changing anything, and the scope it would grow is
+    the per-site copy): rebuilding it at every one of the thousands of call sites was an eighth of
+    the first spq.distance's compile.
+
+    Only InlineWorker.inline_function (the ``inline=`` option of njit kernels) is changed; an
+    overload's cached IR, inlined by inline_ir directly, is copied as before. The compiled code is
+    the same (tests/test_jit.py compares results and LLVM IR with and without it).
+    SPQ_NUMBA_INLINE_COPY=stock leaves numba as it is."""
     if os.environ.get("SPQ_NUMBA_INLINE_COPY", "") == "stock":
         return
     try:
@@ -116,28 +121,52 @@ def _install_shared_scope_copies() -> None:
     if inline_function is None or getattr(inline_function, "_spq_shared_scope", False):
         return
     var_copy = ir.Var.__dict__.get("__deepcopy__")
-    if var_copy is None or "__deepcopy__" in ir.Scope.__dict__:
+    if var_copy is None or "__deepcopy__" in ir.Scope.__dict__ or not hasattr(InlineWorker, "run_untyped_passes"):
         return  # not the numba this was written for: leave it alone
-    depth = [0]  # inside inline_function (numba compiles under one lock, so no other thread copies now)
+    # the scope copies of the call sites being inlined, innermost last, each {id(kept scope): copy}
+    # (numba compiles under one lock, so no other thread copies IR meanwhile)
+    sites = []
+    built = {}  # (function, flags) -> the function's IR after its untyped passes, never changed
+
+    def site_scope(scope):
+        return sites[-1].get(id(scope), scope) if sites else scope
 
     def var_deepcopy(self, memo):
-        if not depth[0]:
+        if not sites:
             return var_copy(self, memo)
-        out = ir.Var(self.scope, self.name, self.loc)
+        out = ir.Var(site_scope(self.scope), self.name, self.loc)
         memo[id(self)] = out
         return out
 
     def scope_deepcopy(self, memo):
-        if depth[0]:
-            return self
+        if sites:
+            return site_scope(self)
         return copy._reconstruct(self, memo, *self.__reduce_ex__(4))  # what deepcopy does without the method
 
-    def shared_inline_function(self, *args, **kwargs):
-        depth[0] += 1
+    def scope_copy(scope):
+        out = copy.copy(scope)
+        out.localvars = copy.copy(scope.localvars)
+        out.localvars._con = dict(scope.localvars._con)
+        out.redefined = copy.copy(scope.redefined)
+        out.var_redefinitions = collections.defaultdict(set, {k: set(v) for k, v in scope.var_redefinitions.items()})
+        return out
+
+    def shared_inline_function(self, caller_ir, block, i, function, arg_typs=None):
+        if self.locals:  # typing hints of the caller could shape the callee's IR: build it afresh
+            callee_ir = self.run_untyped_passes(function)
+        else:
+            flags = self.flags.copy()
+            flags.enable_ssa = False  # what run_untyped_passes sets
+            key = (function, flags)
+            callee_ir = built.get(key)
+            if callee_ir is None:
+                callee_ir = built[key] = self.run_untyped_passes(function)
+        kept = {id(b.scope): b.scope for b in callee_ir.blocks.values()}
+        sites.append({k: scope_copy(s) for k, s in kept.items()})
         try:
-            return inline_function(self, *args, **kwargs)
+            return self.inline_ir(caller_ir, block, i, callee_ir, function.__code__.co_freevars, arg_typs=arg_typs)
         finally:
-            depth[0] -= 1
+            sites.pop()
 
     shared_inline_function._spq_shared_scope = True
     ir.Var.__deepcopy__ = var_deepcopy
