@@ -151,9 +151,21 @@ def test_no_kernel_takes_more_than_twelve_parameters():
 
 
 _INLINE_PROBE = r'''
-import sys, numpy as np
+import collections, sys, numpy as np
 from spq.kernels.jit import kernel
+from spq.kernels.kinematics import _compose_rigid
 from numba.core.inline_closurecall import InlineWorker
+
+built = collections.Counter()  # the inlined functions' IR builds, by name
+_run_untyped_passes = InlineWorker.run_untyped_passes
+
+
+def counted(self, func, *args, **kwargs):
+    built[func.__name__] += 1
+    return _run_untyped_passes(self, func, *args, **kwargs)
+
+
+InlineWorker.run_untyped_passes = counted
 
 @kernel(inline="always", cache=False)
 def _leg(a, i, s):
@@ -188,18 +200,33 @@ def _reference(a):  # the same sums in plain Python floats: an oracle apart from
         total += both(i) - both(i // 3)
     return total
 
+@kernel(cache=False)
+def _chain(Ts, tmp, out):  # a kernel of spq.kernels (inline="always") at two call sites
+    _compose_rigid(Ts[0], Ts[1], tmp)
+    _compose_rigid(tmp, Ts[2], out)
+    return out[0, 3] + out[1, 3] + out[2, 3]
+
 a = np.random.default_rng(0).random(40)
-print(getattr(InlineWorker.inline_function, "_spq_shared_scope", False))
+Ts = np.array([np.eye(4)] * 3)
+for k in range(3):
+    q = np.linalg.qr(np.random.default_rng(k).normal(size=(3, 3)))[0]
+    Ts[k, :3, :3], Ts[k, :3, 3] = q, np.random.default_rng(k + 3).normal(size=3)
+chained = np.empty((4, 4))
+_chain(Ts, np.empty((4, 4)), chained)
+assert np.allclose(chained, Ts[0] @ Ts[1] @ Ts[2], rtol=0.0, atol=1e-14)
 assert abs(_probe(a) - _reference(a)) <= 1e-12 * abs(_reference(a)), (_probe(a), _reference(a))
+print(getattr(InlineWorker.inline_function, "_spq_shared_scope", False), built["_compose_rigid"], built["_leg"])
 print(repr(_probe(a)))
 (llvm,) = _probe.inspect_llvm().values()
-print(llvm)
+(chain_llvm,) = _chain.inspect_llvm().values()
+print(llvm + chain_llvm)
 '''
 
 
 def _canonical_llvm(text: str) -> str:
-    """LLVM IR with each function's local names (values, labels) renamed in order of appearance and
-    runs of spaces collapsed: two modules equal here are the same code under other names. (An
+    """LLVM IR with each function's local names (values, labels) renamed in order of appearance, and
+    numba's compile counters and runs of spaces collapsed: two modules equal here are the same code
+    under other names. (An
     inlined kernel's variables are named after its IR's build, which spq.kernels.jit builds once per
     kernel and numba once per call site, so numbered temporaries and labels differ between the two.)"""
 
@@ -212,6 +239,7 @@ def _canonical_llvm(text: str) -> str:
         part = re.sub(r'(?m)^("[^"]*"|[-a-zA-Z$._0-9]+):', lambda m: name(m.group(1)) + ":", part)
         return re.sub(r'%("[^"]*"|[-a-zA-Z$._0-9]+)', lambda m: "%" + name(m.group(1)), part)
 
+    text = re.sub(r"B\d+v\d+(?=[BE])", "Bv", text)  # numba's compile counter in mangled names ("B3v10")
     return re.sub(r" +", " ", "".join(one_function(p) for p in re.split(r"(?m)^(?=define )", text)))
 
 
@@ -237,7 +265,9 @@ def test_inlining_with_shared_scopes_compiles_the_same_code_as_numbas_own_copies
         done = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, done.stderr
         runs[mode] = done.stdout.split("\n", 2)
-    assert runs["shared"][0] == "True" and runs["stock"][0] == "False"  # the copy was (not) taken over
+    # the copy was (not) taken over; a kernel's IR built once for its two call sites, not twice (numba's
+    # way), and another module's inlined function built at each of its six sites either way
+    assert runs["shared"][0] == "True 1 6" and runs["stock"][0] == "False 2 6"
     assert runs["shared"][1] == runs["stock"][1]
     assert re.search(r"@\"?_ZN[^\s(]*4_leg", runs["shared"][2]) is None  # inlined, not called
     assert "fadd double" in runs["shared"][2]

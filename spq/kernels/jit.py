@@ -90,6 +90,14 @@ def _install_cache_stamp() -> None:
 _install_cache_stamp()
 
 
+def _in_kernels_dir(function) -> bool:
+    """Whether a Python function is defined in a file of this folder (a kernel)."""
+    try:
+        return Path(function.__code__.co_filename).resolve().parent == KERNELS_DIR
+    except (AttributeError, OSError):
+        return False
+
+
 def _install_shared_scope_copies() -> None:
     """Make numba's IR inliner copy a kernel's IR in linear time, and build it once per kernel.
 
@@ -101,10 +109,12 @@ def _install_shared_scope_copies() -> None:
     it (it renames every variable into the caller's scope), so while it inlines a function here, a
     variable's copy takes a copy of the Scope made once for that call site.
 
-    The callee's IR itself depends only on the function and the compiler's flags, so it is built
-    once and kept (the inliner copies it before changing anything, and the scope it would grow is
-    the per-site copy): rebuilding it at every one of the thousands of call sites was an eighth of
-    the first spq.distance's compile.
+    A kernel of this folder is built once and its IR kept (the inliner copies it before changing
+    anything, and the scope it would grow is the per-site copy): rebuilding it at every one of the
+    thousands of call sites was an eighth of the first spq.distance's compile. Its IR depends only on
+    the function and the compiler's flags, as the kernels' globals are constants. Other code's
+    inlined functions (a user's, whose globals may change between two compiles) are built afresh at
+    each call site, as numba does.
 
     Only InlineWorker.inline_function (the ``inline=`` option of njit kernels) is changed; an
     overload's cached IR, inlined by inline_ir directly, is copied as before. The compiled code is
@@ -152,7 +162,8 @@ def _install_shared_scope_copies() -> None:
         return out
 
     def shared_inline_function(self, caller_ir, block, i, function, arg_typs=None):
-        if self.locals:  # typing hints of the caller could shape the callee's IR: build it afresh
+        # (typing hints of the caller could shape the callee's IR: then it is built afresh too)
+        if self.locals or not _in_kernels_dir(function):
             callee_ir = self.run_untyped_passes(function)
         else:
             flags = self.flags.copy()
