@@ -226,9 +226,9 @@ print(llvm + chain_llvm)
 def _canonical_llvm(text: str) -> str:
     """LLVM IR with each function's local names (values, labels) renamed in order of appearance, and
     numba's compile counters and runs of spaces collapsed: two modules equal here are the same code
-    under other names. (An
-    inlined kernel's variables are named after its IR's build, which spq.kernels.jit builds once per
-    kernel and numba once per call site, so numbered temporaries and labels differ between the two.)"""
+    under other names. (An inlined kernel's variables are named after its IR's build, which
+    spq.kernels.jit makes once per kernel and numba once per call site, so numbered temporaries and
+    labels differ between the two.)"""
 
     def one_function(part: str) -> str:
         names = {}
