@@ -400,3 +400,31 @@ def test_a_thousand_points_give_a_closed_surface_whose_balls_hold_every_point(R)
     assert len(topo.vertices) == 1000 and len(topo.faces) == 1996  # Euler: F = 2V - 4, all on the hull
     far = np.sqrt(((x[:, None, :] - topo.face_centres[None, :, :]) ** 2).sum(axis=2)).max(axis=0)
     assert far.max() <= (R - 0.005) * (1.0 + 1e-12)
+
+
+def _edge_counts(tris) -> dict:
+    """How many triangles hold each undirected edge, counted one by one in plain Python."""
+    counts: dict = {}
+    for t in tris:
+        for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])):
+            key = (min(int(a), int(b)), max(int(a), int(b)))
+            counts[key] = counts.get(key, 0) + 1
+    return counts
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_boundary_is_manifold_agrees_with_edges_counted_one_by_one(seed):
+    from spq.stp.construction import _boundary_is_manifold
+
+    rng = np.random.default_rng(seed)
+    closed = ConvexHull(rng.normal(size=(30 + 10 * seed, 3))).simplices
+    open_ = closed[1:]
+    doubled = np.vstack([closed, closed[:1]])
+    # vertex ids far apart, so that an edge key mixing its two ends would collide if it were wrong
+    relabelled = np.where(closed == closed.max(), 10**6, closed)
+    cases = {"closed": closed, "one face missing": open_, "one face doubled": doubled, "relabelled": relabelled}
+    expected = {"closed": True, "one face missing": False, "one face doubled": False, "relabelled": True}
+    for name, tris in cases.items():
+        oracle = all(c == 2 for c in _edge_counts(tris).values())
+        assert oracle == expected[name], name  # the cases are what they say
+        assert _boundary_is_manifold(tris) == oracle, name
