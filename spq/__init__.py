@@ -4,6 +4,7 @@ Convex shapes with support functions (polyhedral hull, STP-BV, superellipsoid, p
 distance with witness points, single, per-pair with warm start, and batched.
 """
 
+from spq.compile_notice import install as _install_compile_notice
 from spq.gradient import distance_gradient, distance_gradients
 from spq.kernels.gjk import STATUS_NAMES
 from spq.query import (
@@ -25,6 +26,8 @@ from spq.shapes.stpbv import STPBV
 from spq.shapes.superellipsoid import Ellipsoid, FitResult, Superellipsoid
 
 __version__ = "0.1.0"
+
+_install_compile_notice()  # a line on stderr while numba compiles the kernels (minutes, on first use)
 
 __all__ = [
     "STATUS_NAMES", "DEFAULT_MAX_ITER", "DEFAULT_TOL_ABS", "DEFAULT_TOL_REL", "BatchDistances",
