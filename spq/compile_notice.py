@@ -3,17 +3,21 @@
 The first call of a query, a batch or a scene compiles the kernels it reaches (numba, ``cache=True``);
 later runs load them from numba's cache within seconds. Without a word, that first call looks hung.
 numba triggers its ``numba:compile`` event only when a function is not in its cache, so a listener on
-that event says when an spq entry point starts compiling and how long it took. Kernels compiled
-inside another's compile (its callees) are part of that one line. ``SPQ_COMPILE_NOTICE=0`` silences it.
+that event says, once a compile of an spq entry point has run for a couple of seconds, what it is
+compiling, and then how long it took. Kernels compiled inside another's compile (its callees) are
+part of that one line. ``SPQ_COMPILE_NOTICE``: ``0`` (or ``off``) silences it; a number of seconds
+sets how long a compile runs before it is announced (default :data:`NOTICE_AFTER`).
 """
 
 from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 
 ENV = "SPQ_COMPILE_NOTICE"
+NOTICE_AFTER = 2.0  # seconds: shorter compiles (small kernels, a cache a little stale) pass unannounced
 
 
 def _spq_function(ev) -> str | None:
@@ -28,38 +32,79 @@ def _listener_class():
     from numba.core import event
 
     class CompileNotice(event.Listener):
-        """Writes a line to ``stream`` (default: sys.stderr at the time) when an spq function starts
-        compiling outside any other compile, and one when it is done."""
+        """Writes a line to ``stream`` (default: sys.stderr at the time) once an spq function compiled
+        outside any other compile has taken ``after`` seconds (at once if ``after`` <= 0), and a line
+        when it is done if the first was written."""
 
-        def __init__(self, stream=None):
+        def __init__(self, stream=None, after: float = NOTICE_AFTER):
             self.stream = stream
+            self.after = float(after)
             self.depth = 0  # nested compile events inside the spq compile being reported
             self.name = ""
             self.start = 0.0
+            self.told = False
+            self.timer = None
+            self.lock = threading.Lock()  # the timer's thread and the compiling one
 
         def _write(self, text: str) -> None:
             stream = self.stream or sys.stderr
             stream.write(text + "\n")
             stream.flush()
 
+        def _tell(self, name: str) -> None:
+            with self.lock:
+                if self.depth > 0 and self.name == name and not self.told:
+                    self.told = True
+                    self._write(f"spq: numba is compiling {name} for its first use (minutes on a fresh install; "
+                                "numba's cache keeps it for later runs)")
+
         def on_start(self, ev):
             if self.depth == 0:
                 name = _spq_function(ev)
                 if name is None:
                     return
-                self.name, self.start = name, time.perf_counter()
-                self._write(f"spq: numba is compiling {name} for its first use (minutes on a fresh install; "
-                            "numba's cache keeps it for later runs)")
+                with self.lock:
+                    self.name, self.start, self.told, self.depth = name, time.perf_counter(), False, 1
+                if self.after <= 0:
+                    self._tell(name)
+                else:
+                    self.timer = threading.Timer(self.after, self._tell, args=(name,))
+                    self.timer.daemon = True
+                    self.timer.start()
+                return
             self.depth += 1
 
         def on_end(self, ev):
             if self.depth == 0:
                 return
-            self.depth -= 1
-            if self.depth == 0:
-                self._write(f"spq: {self.name} compiled in {time.perf_counter() - self.start:.0f} s")
+            if self.depth > 1:
+                self.depth -= 1
+                return
+            if self.timer is not None:
+                self.timer.cancel()
+                self.timer = None
+            with self.lock:
+                self.depth = 0
+                if self.told:
+                    self._write(f"spq: {self.name} compiled in {time.perf_counter() - self.start:.0f} s")
 
     return CompileNotice
+
+
+def _delay_from_env() -> float | None:
+    """Seconds before a compile is announced, from SPQ_COMPILE_NOTICE; None: silenced."""
+    text = os.environ.get(ENV, "").strip().lower()
+    if text == "":
+        return NOTICE_AFTER
+    if text in ("0", "off", "no", "false"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{ENV} must be 0 or off (silenced) or a number of seconds > 0; got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise ValueError(f"{ENV} must be 0 or off (silenced) or a number of seconds > 0; got {text!r}")
+    return value
 
 
 _INSTALLED: list = []
@@ -67,14 +112,15 @@ _INSTALLED: list = []
 
 def install(stream=None):
     """Register the notice with numba's event system, once per process; returns the listener, or None
-    when ``SPQ_COMPILE_NOTICE=0`` or numba has no event system."""
-    if os.environ.get(ENV, "1") == "0":
+    when SPQ_COMPILE_NOTICE silences it or numba has no event system."""
+    after = _delay_from_env()
+    if after is None:
         return None
     if _INSTALLED:
         return _INSTALLED[0]
     try:
         from numba.core import event
-        listener = _listener_class()(stream)
+        listener = _listener_class()(stream, after)
         event.register("numba:compile", listener)
     except (ImportError, AttributeError):  # a numba without the event API: no notice, nothing else lost
         return None

@@ -7,6 +7,11 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from spq.compile_notice import NOTICE_AFTER, _delay_from_env, _listener_class
 
 REPO = Path(__file__).resolve().parent.parent
 # a small kernel called straight from Python, and a user's own njit function that is not spq's
@@ -33,14 +38,14 @@ def _run(cache: Path, **env) -> subprocess.CompletedProcess:
 
 
 def test_the_notice_names_the_kernel_compiled_and_is_silent_once_it_is_cached(tmp_path):
-    first = _run(tmp_path)
+    first = _run(tmp_path, SPQ_COMPILE_NOTICE="0.001")  # announced after 1 ms: this kernel compiles in less than 2 s
     assert first.returncode == 0, first.stderr
     assert "triple 1.0" in first.stdout
     lines = [line for line in first.stderr.splitlines() if line.startswith("spq:")]
     assert lines[0].startswith("spq: numba is compiling _triple for its first use"), first.stderr
     assert lines[1].startswith("spq: _triple compiled in "), first.stderr
     assert len(lines) == 2 and "users_own" not in first.stderr  # a user's own function: nothing said
-    again = _run(tmp_path)
+    again = _run(tmp_path, SPQ_COMPILE_NOTICE="0.001")
     assert again.returncode == 0 and "triple 1.0" in again.stdout
     assert "spq:" not in again.stderr  # from numba's cache: nothing to say
 
@@ -52,10 +57,6 @@ def test_the_notice_is_silenced_by_the_environment(tmp_path):
 
 
 def test_a_nested_compile_is_one_line_and_other_functions_are_not_reported():
-    from types import SimpleNamespace
-
-    from spq.compile_notice import _listener_class
-
     class Stream:
         text = ""
 
@@ -66,7 +67,7 @@ def test_a_nested_compile_is_one_line_and_other_functions_are_not_reported():
             pass
 
     stream = Stream()
-    notice = _listener_class()(stream)
+    notice = _listener_class()(stream, 0)  # announced at once
 
     def event(module, name):
         fn = SimpleNamespace(__module__=module, __qualname__=name)
@@ -82,3 +83,28 @@ def test_a_nested_compile_is_one_line_and_other_functions_are_not_reported():
     notice.on_end(event("spq.kernels.batch", "query_batch"))
     lines = stream.text.splitlines()
     assert len(lines) == 2 and "query_batch" in lines[0] and lines[1].startswith("spq: query_batch compiled in ")
+
+
+def test_a_compile_shorter_than_the_delay_is_not_announced():
+    lines = []
+    stream = SimpleNamespace(write=lines.append, flush=lambda: None)
+    notice = _listener_class()(stream, 60.0)
+    fn = SimpleNamespace(__module__="spq.kernels.batch", __qualname__="query_batch")
+    ev = SimpleNamespace(data={"dispatcher": SimpleNamespace(py_func=fn)})
+    notice.on_start(ev)
+    notice.on_end(ev)
+    assert lines == [] and notice.timer is None and notice.depth == 0
+
+
+def test_the_delay_is_read_from_the_environment(monkeypatch):
+    monkeypatch.delenv("SPQ_COMPILE_NOTICE", raising=False)
+    assert _delay_from_env() == NOTICE_AFTER
+    for off in ("0", "off", " OFF "):
+        monkeypatch.setenv("SPQ_COMPILE_NOTICE", off)
+        assert _delay_from_env() is None
+    monkeypatch.setenv("SPQ_COMPILE_NOTICE", "5")
+    assert _delay_from_env() == 5.0
+    for bad in ("soon", "-1", "nan", "inf"):
+        monkeypatch.setenv("SPQ_COMPILE_NOTICE", bad)
+        with pytest.raises(ValueError, match="SPQ_COMPILE_NOTICE"):
+            _delay_from_env()
