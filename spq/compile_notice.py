@@ -16,6 +16,8 @@ import sys
 import threading
 import time
 
+from numba.core import event
+
 ENV = "SPQ_COMPILE_NOTICE"
 NOTICE_AFTER = 2.0  # seconds: shorter compiles (small kernels, a cache a little stale) pass unannounced
 
@@ -28,67 +30,61 @@ def _spq_function(ev) -> str | None:
     return function.__qualname__ if module == "spq" or module.startswith("spq.") else None
 
 
-def _listener_class():
-    from numba.core import event
+class CompileNotice(event.Listener):
+    """Writes a line to ``stream`` (default: sys.stderr at the time) once an spq function compiled
+    outside any other compile has taken ``after`` seconds (at once if ``after`` <= 0), and a line when
+    it is done if the first was written. numba compiles under one global lock, so the events come one
+    at a time; the lock here is between them and the timer's thread."""
 
-    class CompileNotice(event.Listener):
-        """Writes a line to ``stream`` (default: sys.stderr at the time) once an spq function compiled
-        outside any other compile has taken ``after`` seconds (at once if ``after`` <= 0), and a line
-        when it is done if the first was written."""
+    def __init__(self, stream=None, after: float = NOTICE_AFTER):
+        self.stream = stream
+        self.after = float(after)
+        self.depth = 0  # compile events open inside the spq compile being reported, itself included
+        self.name = ""
+        self.start = 0.0
+        self.told = False
+        self.timer = None
+        self.lock = threading.Lock()
 
-        def __init__(self, stream=None, after: float = NOTICE_AFTER):
-            self.stream = stream
-            self.after = float(after)
-            self.depth = 0  # nested compile events inside the spq compile being reported
-            self.name = ""
-            self.start = 0.0
-            self.told = False
-            self.timer = None
-            self.lock = threading.Lock()  # the timer's thread and the compiling one
+    def _write(self, text: str) -> None:
+        stream = self.stream or sys.stderr
+        stream.write(text + "\n")
+        stream.flush()
 
-        def _write(self, text: str) -> None:
-            stream = self.stream or sys.stderr
-            stream.write(text + "\n")
-            stream.flush()
+    def _tell(self, name: str) -> None:
+        with self.lock:
+            if self.depth > 0 and self.name == name and not self.told:
+                self.told = True
+                self._write(f"spq: numba is compiling {name} for its first use (minutes on a fresh install; "
+                            "numba's cache keeps it for later runs)")
 
-        def _tell(self, name: str) -> None:
-            with self.lock:
-                if self.depth > 0 and self.name == name and not self.told:
-                    self.told = True
-                    self._write(f"spq: numba is compiling {name} for its first use (minutes on a fresh install; "
-                                "numba's cache keeps it for later runs)")
-
-        def on_start(self, ev):
-            if self.depth == 0:
-                name = _spq_function(ev)
-                if name is None:
-                    return
-                with self.lock:
-                    self.name, self.start, self.told, self.depth = name, time.perf_counter(), False, 1
-                if self.after <= 0:
-                    self._tell(name)
-                else:
-                    self.timer = threading.Timer(self.after, self._tell, args=(name,))
-                    self.timer.daemon = True
-                    self.timer.start()
-                return
+    def on_start(self, ev):
+        if self.depth > 0:
             self.depth += 1
+            return
+        name = _spq_function(ev)
+        if name is None:
+            return
+        with self.lock:
+            self.name, self.start, self.told, self.depth = name, time.perf_counter(), False, 1
+        if self.after <= 0:
+            self._tell(name)
+        else:
+            self.timer = threading.Timer(self.after, self._tell, args=(name,))
+            self.timer.daemon = True
+            self.timer.start()
 
-        def on_end(self, ev):
-            if self.depth == 0:
-                return
-            if self.depth > 1:
-                self.depth -= 1
-                return
-            if self.timer is not None:
-                self.timer.cancel()
-                self.timer = None
-            with self.lock:
-                self.depth = 0
-                if self.told:
-                    self._write(f"spq: {self.name} compiled in {time.perf_counter() - self.start:.0f} s")
-
-    return CompileNotice
+    def on_end(self, ev):
+        if self.depth != 1:
+            self.depth = max(self.depth - 1, 0)
+            return
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
+        with self.lock:
+            self.depth = 0
+            if self.told:
+                self._write(f"spq: {self.name} compiled in {time.perf_counter() - self.start:.0f} s")
 
 
 def _delay_from_env() -> float | None:
@@ -112,17 +108,11 @@ _INSTALLED: list = []
 
 def install(stream=None):
     """Register the notice with numba's event system, once per process; returns the listener, or None
-    when SPQ_COMPILE_NOTICE silences it or numba has no event system."""
+    when SPQ_COMPILE_NOTICE silences it."""
     after = _delay_from_env()
     if after is None:
         return None
-    if _INSTALLED:
-        return _INSTALLED[0]
-    try:
-        from numba.core import event
-        listener = _listener_class()(stream, after)
-        event.register("numba:compile", listener)
-    except (ImportError, AttributeError):  # a numba without the event API: no notice, nothing else lost
-        return None
-    _INSTALLED.append(listener)
-    return listener
+    if not _INSTALLED:
+        _INSTALLED.append(CompileNotice(stream, after))
+        event.register("numba:compile", _INSTALLED[0])
+    return _INSTALLED[0]

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from spq.compile_notice import NOTICE_AFTER, _delay_from_env, _listener_class
+from spq.compile_notice import NOTICE_AFTER, CompileNotice, _delay_from_env
 
 REPO = Path(__file__).resolve().parent.parent
 # a small kernel called straight from Python, and a user's own njit function that is not spq's
@@ -56,6 +56,12 @@ def test_the_notice_is_silenced_by_the_environment(tmp_path):
     assert "spq:" not in run.stderr
 
 
+def _event(module: str, name: str):
+    """A numba compile event's shape, for a function of that module and name."""
+    fn = SimpleNamespace(__module__=module, __qualname__=name)
+    return SimpleNamespace(data={"dispatcher": SimpleNamespace(py_func=fn)})
+
+
 def test_a_nested_compile_is_one_line_and_other_functions_are_not_reported():
     class Stream:
         text = ""
@@ -67,12 +73,8 @@ def test_a_nested_compile_is_one_line_and_other_functions_are_not_reported():
             pass
 
     stream = Stream()
-    notice = _listener_class()(stream, 0)  # announced at once
-
-    def event(module, name):
-        fn = SimpleNamespace(__module__=module, __qualname__=name)
-        return SimpleNamespace(data={"dispatcher": SimpleNamespace(py_func=fn)})
-
+    notice = CompileNotice(stream, 0)  # announced at once
+    event = _event
     notice.on_start(event("users.module", "mine"))  # not spq's: ignored, and so is its end
     notice.on_end(event("users.module", "mine"))
     assert stream.text == ""
@@ -88,9 +90,8 @@ def test_a_nested_compile_is_one_line_and_other_functions_are_not_reported():
 def test_a_compile_shorter_than_the_delay_is_not_announced():
     lines = []
     stream = SimpleNamespace(write=lines.append, flush=lambda: None)
-    notice = _listener_class()(stream, 60.0)
-    fn = SimpleNamespace(__module__="spq.kernels.batch", __qualname__="query_batch")
-    ev = SimpleNamespace(data={"dispatcher": SimpleNamespace(py_func=fn)})
+    notice = CompileNotice(stream, 60.0)
+    ev = _event("spq.kernels.batch", "query_batch")
     notice.on_start(ev)
     notice.on_end(ev)
     assert lines == [] and notice.timer is None and notice.depth == 0
