@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.suites.bench.timing import BLOCK
 from harness.suites.check.gate import SECTIONS, SPEED_FLOOR, CheckConfig
 from harness.suites.table1 import CSE_FIT, preset_text
 
@@ -321,6 +322,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--range", type=float, default=0.3, help="translation range (m), uniform in ±range")
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--block", type=int, default=BLOCK,
+                   help=f"pch, stp, table1: poses per block; each block is timed --repeats times, every engine on it "
+                        f"before the next, its least time kept (default {BLOCK})")
     p.add_argument("--engines", nargs="+", help="engine names (default: all that import)")
     p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m), stp suite")
     p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m), stp suite")

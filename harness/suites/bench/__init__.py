@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from harness.engines.mujoco_engine import PIPELINE_NOTE as MUJOCO_PIPELINE
 from harness.suites import Output, Table, frame_lines
+from harness.suites.bench.timing import BLOCK
 
 PAIRS = {"pch": ["PCH-PCH"], "stp": ["PCH-PCH", "STP-PCH", "STP-STP"]}
 
@@ -18,7 +19,8 @@ class Config:
     poses: int = 20000
     seed: int = 0
     range: float = 0.3  # m: translations uniform in ±range
-    repeats: int = 3
+    repeats: int = 3  # rounds: each block of poses timed this many times, its least time kept
+    block: int = BLOCK  # poses per block (harness.suites.bench.timing)
     engines: list[str] | None = None  # None: every registered engine that imports
     r: float = 0.005  # m: STP-BV small radius (kind "stp")
     R: float = 2.0  # m: STP-BV big radius (kind "stp")
@@ -38,19 +40,20 @@ def run(config: Config) -> Output:
     if config.kind not in PAIRS:
         raise ValueError(f"kind must be one of {sorted(PAIRS)}, not {config.kind!r}")
     cfg = bench.BenchConfig(object_name=config.object, poses=config.poses, seed=config.seed,
-                            translation_range=config.range, repeats=config.repeats, engines=config.engines,
-                            r=config.r, R=config.R, pairs=PAIRS[config.kind], workers=config.workers)
+                            translation_range=config.range, repeats=config.repeats, block=config.block,
+                            engines=config.engines, r=config.r, R=config.R, pairs=PAIRS[config.kind], workers=config.workers)
     table = bench.throughput(cfg, load_object, progress=config.progress)
     meta = run_metadata(command=f"spq bench {config.kind}", seed=config.seed, poses=config.poses,
-                        translation_range_m=config.range, repeats=config.repeats, spq_tol_abs=DEFAULT_TOL_ABS,
-                        spq_tol_rel=DEFAULT_TOL_REL, coal_gjk_tolerance=1e-8,
+                        translation_range_m=config.range, repeats=config.repeats, block=config.block,
+                        spq_tol_abs=DEFAULT_TOL_ABS, spq_tol_rel=DEFAULT_TOL_REL, coal_gjk_tolerance=1e-8,
                         **({"stp_r": config.r, "stp_R": config.R} if config.kind == "stp" else {}),
                         **({"workers": config.workers} if config.workers > 1 else {}))
     notes = (f"Two copies of {config.object}, {config.poses} pose pairs with uniformly random rotations and "
-             f"translations uniform in ±{config.range} m, seed {config.seed}. Best of {config.repeats} repeats; every "
-             "engine in the same run. per-call: one Python call per query; batched: one compiled call for all "
-             "poses; signed: spq with signed=True (penetration depth on overlaps; coal always runs with signed "
-             "distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side. "
+             f"translations uniform in ±{config.range} m, seed {config.seed}. Timed in blocks of {config.block} "
+             f"poses: every engine runs a block before any runs the next, {config.repeats} rounds, and an engine's "
+             "time is the sum over the blocks of its least time on each; every engine in the same run. per-call: "
+             "one Python call per query; batched: one compiled call per block; signed: spq with signed=True "
+             "(penetration depth on overlaps; coal always runs with signed distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side. "
              + MUJOCO_PIPELINE)
     if config.workers > 1:
         notes += (f" batched {config.workers} workers: the batched call split over {config.workers} threads "

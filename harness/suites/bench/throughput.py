@@ -1,20 +1,21 @@
 """Throughput benchmarks: queries per second of every engine on the same object and poses, one run.
 
 Each engine runs its leanest per-query Python loop (``PreparedPair.distance_loop``); spq also runs its
-batched compiled call and the plain ``spq.distance`` call in a loop. The figure reported is the best of ``repeats`` timed runs (the least disturbed
-by other load on the machine), the runs of all engines taken in turn within each round (see
-:func:`best_times`), and every rate is divided by coal's PCH-PCH rate from the same run.
+batched compiled call (one per block of poses) and the plain ``spq.distance`` call in a loop. The
+poses are cut into blocks, every engine runs block 1, then block 2, and so on, ``repeats`` rounds; an
+engine's time is the sum over the blocks of its least time on each (harness.suites.bench.timing), and
+every rate is divided by coal's PCH-PCH rate from the same run.
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from harness.engines import available_engines
+from harness.suites.bench.timing import BLOCK, blocked_calls, blocked_times
 from harness.workloads.poses import random_poses
 
 BASELINE = ("PCH-PCH", "coal")
@@ -26,36 +27,13 @@ class BenchConfig:
     poses: int = 20000
     seed: int = 0
     translation_range: float = 0.3  # m: translations uniform in [-range, range]^3
-    repeats: int = 3
+    repeats: int = 3  # rounds: each block of poses timed this many times, its least time kept
+    block: int = BLOCK  # poses per block (harness.suites.bench.timing.blocked_times)
     engines: list[str] | None = None
     r: float = 0.005  # STP-BV radii (m), for the STP pairs
     R: float = 2.0
     pairs: list[str] = field(default_factory=lambda: ["PCH-PCH"])
     workers: int = 1  # > 1: spq's batched rows also on this many threads (spq.workers), beside one thread's
-
-
-def best_time(fn, repeats: int, setup=None) -> tuple[float, np.ndarray]:
-    """(best seconds, last result) of ``repeats`` timed calls of fn; setup(), if given, runs untimed
-    before each."""
-    return best_times({None: fn}, repeats, setups={None: setup} if setup is not None else None)[None]
-
-
-def best_times(jobs: dict, repeats: int, setups: dict | None = None, progress=None) -> dict:
-    """{key: (best seconds, last result)} of ``repeats`` rounds over the zero-argument calls in
-    ``jobs``, timed in turn within each round, so that a slow spell of a shared machine falls on
-    every job alike and the ratios between them stay fair. setups: {key: untimed call before each
-    timed one}; progress: a tqdm bar to advance once per timed call."""
-    best = {key: (np.inf, None) for key in jobs}
-    for _ in range(repeats):
-        for key, fn in jobs.items():
-            if setups and key in setups:
-                setups[key]()
-            t0 = time.perf_counter()
-            out = fn()
-            best[key] = (min(best[key][0], time.perf_counter() - t0), out)
-            if progress is not None:
-                progress.update(1)
-    return best
 
 
 def timing_modes(pair) -> list[tuple[str, object]]:
@@ -166,10 +144,10 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
         subsets = {"all": (poses_a, poses_b)}
         if overlapping.any():
             subsets["overlapping"] = (poses_a[overlapping], poses_b[overlapping])
-        jobs = {key + (subset,): (lambda fn=fn, pa=pa, pb=pb: fn(pa, pb))
-                for subset, (pa, pb) in subsets.items() for key, fn in modes.items()}
-        with tqdm(total=config.repeats * len(jobs), desc="bench", unit="run", disable=not progress) as bar:
-            timed = best_times(jobs, config.repeats, progress=bar)
+        jobs = {key + (subset,): (fn, pa, pb) for subset, (pa, pb) in subsets.items() for key, fn in modes.items()}
+        with tqdm(total=blocked_calls(jobs, config.repeats, config.block), desc="bench", unit="run",
+                  disable=not progress) as bar:
+            timed = blocked_times(jobs, config.repeats, config.block, progress=bar)
     finally:
         for pair in prepared:
             pair.close()
@@ -177,8 +155,8 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
             engine.close()
     rows = [{"pair": pair_type, "engine": name, "mode": mode, "poses": subset, "queries": len(subsets[subset][0]),
              "seconds": seconds, "queries_per_s": len(subsets[subset][0]) / seconds,
-             "overlapping": int(np.sum(np.asarray(dist) <= 0.0))}
-            for (pair_type, name, mode, subset), (seconds, dist) in timed.items()]
+             "overlapping": int(np.sum(np.concatenate(blocks) <= 0.0))}
+            for (pair_type, name, mode, subset), (seconds, blocks) in timed.items()]
     table = pd.DataFrame(rows)
     table["ratio_to_coal_pch"] = np.nan
     for subset in subsets:

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.suites.bench.throughput import best_time
+from harness.suites.bench.timing import best_time, blocked_times
 from harness.workloads.robot_poses import random_configurations, smooth_trajectory
 from spq.kernels.gjk import FAILED, OUT_DISTANCE, OUT_ITERATIONS, OUT_SIZE, OUT_STATUS, OVERLAPPING, SEPARATED
 from spq.scene import Scene
@@ -117,18 +117,13 @@ def signed_rows(scenes: dict, qs: np.ndarray, repeats: int, block: int = TIMING_
         outs = {signed: result_array(len(qs), len(scene.pairs)) for signed in (False, True)}
         for signed in outs:
             scene.distances_many(qs[:2], signed=signed)  # compile / load the kernels
-        starts = range(0, len(qs), block)
-        best = {signed: np.full(len(starts), np.inf) for signed in outs}
-        for _ in range(repeats):
-            for i, s0 in enumerate(starts):
-                for signed, out in outs.items():
-                    t0 = time.perf_counter()
-                    scene.distances_many(qs[s0:s0 + block], signed=signed, out=out[s0:s0 + block])
-                    best[signed][i] = min(best[signed][i], time.perf_counter() - t0)
+        jobs = {signed: (lambda q, o, signed=signed, scene=scene: scene.distances_many(q, signed=signed, out=o),
+                         qs, out) for signed, out in outs.items()}
+        seconds = {signed: timed[0] for signed, timed in blocked_times(jobs, repeats, block).items()}
         signed_out = outs[True]
         deepest = signed_out[:, :, OUT_DISTANCE].min(axis=1)
         status = signed_out[:, :, OUT_STATUS]
-        unsigned_ms, signed_ms = (1e3 * best[s].sum() / len(qs) for s in (False, True))
+        unsigned_ms, signed_ms = (1e3 * seconds[s] / len(qs) for s in (False, True))
         rows.append({"policy": policy, "configurations": len(qs), "pairs": len(scene.pairs),
                      "unsigned_ms_per_config": unsigned_ms, "signed_ms_per_config": signed_ms,
                      "signed_over_unsigned": signed_ms / unsigned_ms,

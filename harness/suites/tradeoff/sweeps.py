@@ -22,7 +22,8 @@ import pandas as pd
 
 import spq
 from harness.report.charts import save_figure
-from harness.suites.bench.throughput import best_time, timing_modes
+from harness.suites.bench.throughput import timing_modes
+from harness.suites.bench.timing import best_time
 
 SEPARATED_BUCKETS = ("distant-1", "distant-0.5", "close-1e-1", "close-1e-2", "close-1e-3", "close-1e-4")
 FAIL_DISTANCE = 1e6  # m: |distance| above this is a failure (coal can return -DBL_MAX on a separated pose)
