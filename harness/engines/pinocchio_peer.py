@@ -65,16 +65,21 @@ class PinocchioScene:
         pin.computeDistances(self.model, self.data, self.geometry, self.geometry_data, q_pin)
         return np.array([r.min_distance for r in self.geometry_data.distanceResults])
 
-    def seconds(self, qs_pin: list, repeats: int) -> float:
-        """Best of ``repeats`` runs of one computeDistances call per configuration, in order."""
+    def run(self, qs_pin) -> None:
+        """One computeDistances call per configuration (rows of qs_pin, pinocchio's order), in order:
+        what the benchmarks time."""
         pin, _ = _import()
         model, data, geometry, gdata = self.model, self.data, self.geometry, self.geometry_data
         compute = pin.computeDistances
+        for q in qs_pin:
+            compute(model, data, geometry, gdata, q)
+
+    def seconds(self, qs_pin: list, repeats: int) -> float:
+        """Best of ``repeats`` runs of :meth:`run`."""
         best = np.inf
         for _ in range(repeats):
             start = time.perf_counter()
-            for q in qs_pin:
-                compute(model, data, geometry, gdata, q)
+            self.run(qs_pin)
             best = min(best, time.perf_counter() - start)
         return best
 

@@ -223,8 +223,8 @@ def engine_table(config: RobotBenchConfig, scene: Scene, qs: np.ndarray, spq_out
 
 def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_out: np.ndarray) -> pd.DataFrame:
     """pinocchio.computeDistances (one C++ call per configuration over every pair, forward kinematics
-    included, coal.Convex hulls on the same links) in each of its coal GJK variants, timed in turn with
-    spq's cold pch and auto runs within each round (best of config.repeats per side), and its
+    included, coal.Convex hulls on the same links) in each of its coal GJK variants, timed beside
+    spq's cold pch and auto runs in blocks of configurations (timing.blocked_times), and its
     distances against spq's PCH results (spq_out, cold at qs): separated pairs' largest difference,
     and overlap verdicts that disagree outside a 1e-6 m band. An empty table's single row says why
     pinocchio did not run."""
@@ -237,14 +237,14 @@ def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_
         return pd.DataFrame([{"engine": "pinocchio", "status": f"not run: {exc}"}])
     urdf = robot_files(config.robot).urdf
     peers = {variant: pp.build(scenes["pch"], urdf, variant) for variant in pp.VARIANTS}
-    q_pin = [peers["default"].configuration(q) for q in qs]
+    q_pin = np.array([peers["default"].configuration(q) for q in qs])
     spq_sides = {p: scenes[p] for p in ("pch", "auto") if p in scenes}
-    best = {name: np.inf for name in [*peers, *spq_sides]}
-    for _ in range(config.repeats):
-        for variant, peer in peers.items():
-            best[variant] = min(best[variant], peer.seconds(q_pin, 1))
-        for policy, scene in spq_sides.items():
-            best[policy] = min(best[policy], best_run(scene, qs, False, None, 1)[0])
+    jobs = {variant: (peer.run, q_pin) for variant, peer in peers.items()}
+    for policy, scene in spq_sides.items():
+        scene.distances_many(qs[:2], coherent=False)  # compile / load the kernels
+        jobs[policy] = (lambda q, o, scene=scene: scene.distances_many(q, coherent=False, out=o), qs,
+                        result_array(len(qs), len(scene.pairs)))
+    best = {name: timed[0] for name, timed in blocked_times(jobs, config.repeats, TIMING_BLOCK).items()}
     spq_d = spq_out[:, :, OUT_DISTANCE]
     separated = spq_out[:, :, OUT_STATUS] == SEPARATED
     rows = []
