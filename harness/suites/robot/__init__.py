@@ -84,8 +84,9 @@ def run(config: Config) -> Output:
               "links and the same pairs; one pinocchio.computeDistances call per configuration (forward kinematics, "
               "geometry placements and every pair's coal distance in C++), coal's gjk_tolerance 1e-6 and each GJK "
               "variant: default, cached-guess (the previous result's guess), nesterov (Nesterov acceleration) and "
-              "both. Timed in turn with spq's cold pch and auto runs within each round, best of "
-              f"{config.repeats} per side. spq_*_speedup: pinocchio's time / spq's. max_abs_diff_vs_spq_m: over the "
+              "both. Timed beside spq's cold pch and auto runs in blocks of "
+              f"{rb.TIMING_BLOCK} configurations, every side on a block before any runs the next, {config.repeats} "
+              "rounds, each side's least time per block summed. spq_*_speedup: pinocchio's time / spq's. max_abs_diff_vs_spq_m: over the "
               "pair results spq's PCH run calls separated; overlap_disagreements: one side below -1e-6 m, the "
               "other above 1e-6 m.")]
     out.lines = [*frame_lines(tables["kinematics"]), *frame_lines(tables["signed"]),
