@@ -1,7 +1,7 @@
 """How the benchmarks time their jobs: side by side in rounds, each job's least disturbed time kept.
 
 A shared machine's speed swings: on one 2-core host (2026-11-30) a fixed batch of queries, timed
-back to back for 8 s, took 1.8x its least time most of the time, with faster spells of 100 to 400 ms.
+back to back for 8 s, took 1.8x its least time most of the time, with faster spells of 100 to 700 ms.
 A whole run of a job either falls in a fast spell or it does not, so the best of a few whole runs
 moved one job's rate against another's by up to that swing: the signed plain call's ratio to MuJoCo
 read 1.27x to 1.67x over four runs of the same code (docs/notes/speed-45.md, stop 76).
