@@ -41,7 +41,8 @@ def run(config: Config) -> Output:
         raise ValueError(f"kind must be one of {sorted(PAIRS)}, not {config.kind!r}")
     cfg = bench.BenchConfig(object_name=config.object, poses=config.poses, seed=config.seed,
                             translation_range=config.range, repeats=config.repeats, block=config.block,
-                            engines=config.engines, r=config.r, R=config.R, pairs=PAIRS[config.kind], workers=config.workers)
+                            engines=config.engines, r=config.r, R=config.R, pairs=PAIRS[config.kind],
+                            workers=config.workers)
     table = bench.throughput(cfg, load_object, progress=config.progress)
     meta = run_metadata(command=f"spq bench {config.kind}", seed=config.seed, poses=config.poses,
                         translation_range_m=config.range, repeats=config.repeats, block=config.block,
@@ -53,7 +54,8 @@ def run(config: Config) -> Output:
              f"poses: every engine runs a block before any runs the next, {config.repeats} rounds, and an engine's "
              "time is the sum over the blocks of its least time on each; every engine in the same run. per-call: "
              "one Python call per query; batched: one compiled call per block; signed: spq with signed=True "
-             "(penetration depth on overlaps; coal always runs with signed distance on). poses: all, or only those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side. "
+             "(penetration depth on overlaps; coal always runs with signed distance on). poses: all, or only "
+             "those coal finds overlapping, timed alone. features: vertices (PCH) or patches (STP) of each side. "
              + MUJOCO_PIPELINE)
     if config.workers > 1:
         notes += (f" batched {config.workers} workers: the batched call split over {config.workers} threads "

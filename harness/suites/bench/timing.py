@@ -71,7 +71,7 @@ def blocked_times(jobs: dict, repeats: int, block: int = BLOCK, progress=None, c
     least = {key: [math.inf] * len(b) for key, b in bounds.items()}
     results = {key: [None] * len(b) for key, b in bounds.items()}
     for _ in range(repeats):
-        for k in range(max(len(b) for b in bounds.values())):
+        for k in range(max((len(b) for b in bounds.values()), default=0)):
             for key, (fn, *arrays) in jobs.items():
                 if k >= len(bounds[key]):
                     continue
