@@ -221,6 +221,20 @@ def engine_table(config: RobotBenchConfig, scene: Scene, qs: np.ndarray, spq_out
     return pd.DataFrame(rows)
 
 
+def cold_beside_pinocchio(scenes: dict, peers: dict, qs: np.ndarray, q_pin, repeats: int,
+                          block: int = TIMING_BLOCK) -> tuple[dict, dict]:
+    """({name: seconds}, {policy: cold results (N, npairs, OUT_SIZE)}): each spq scene's cold run over
+    qs and each pinocchio peer's computeDistances loop over q_pin (the same configurations in
+    pinocchio's order), timed side by side in blocks of configurations (timing.blocked_times)."""
+    jobs = {variant: (peer.run, np.asarray(q_pin)) for variant, peer in peers.items()}
+    outs = {}
+    for policy, scene in scenes.items():
+        scene.distances_many(qs[:2], coherent=False)  # compile / load the kernels
+        outs[policy] = result_array(len(qs), len(scene.pairs))
+        jobs[policy] = (lambda q, o, scene=scene: scene.distances_many(q, coherent=False, out=o), qs, outs[policy])
+    return {name: timed[0] for name, timed in blocked_times(jobs, repeats, block).items()}, outs
+
+
 def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_out: np.ndarray) -> pd.DataFrame:
     """pinocchio.computeDistances (one C++ call per configuration over every pair, forward kinematics
     included, coal.Convex hulls on the same links) in each of its coal GJK variants, timed beside
@@ -239,12 +253,7 @@ def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_
     peers = {variant: pp.build(scenes["pch"], urdf, variant) for variant in pp.VARIANTS}
     q_pin = np.array([peers["default"].configuration(q) for q in qs])
     spq_sides = {p: scenes[p] for p in ("pch", "auto") if p in scenes}
-    jobs = {variant: (peer.run, q_pin) for variant, peer in peers.items()}
-    for policy, scene in spq_sides.items():
-        scene.distances_many(qs[:2], coherent=False)  # compile / load the kernels
-        jobs[policy] = (lambda q, o, scene=scene: scene.distances_many(q, coherent=False, out=o), qs,
-                        result_array(len(qs), len(scene.pairs)))
-    best = {name: timed[0] for name, timed in blocked_times(jobs, config.repeats, TIMING_BLOCK).items()}
+    best, _ = cold_beside_pinocchio(spq_sides, peers, qs, q_pin, config.repeats)
     spq_d = spq_out[:, :, OUT_DISTANCE]
     separated = spq_out[:, :, OUT_STATUS] == SEPARATED
     rows = []

@@ -10,8 +10,8 @@ configurations:
   configurations, each block's best of the repeats);
 - pinocchio.computeDistances on the same bodies (coal.Convex hulls, coal's exact Sphere, Box and
   Capsule for the primitives) and pairs: coal's GJK variants race on the first configurations, and
-  the fastest is timed in turn with spq's cold runs within each round, its distances compared with
-  spq's PCH;
+  the fastest is timed beside spq's cold runs in blocks of configurations
+  (robot_bench.cold_beside_pinocchio), its distances compared with spq's PCH;
 - coal from Python (tolerance 1e-8 m, signed distance on) on the same pairs at the first
   configurations: its largest difference from spq's PCH distances on pairs spq finds separated;
 - gradient jumps of the closest pair along a smooth trajectory for pch and auto
@@ -131,20 +131,6 @@ def fastest_variant(peers: dict, q_pin: list) -> str:
     return min(peers, key=lambda v: peers[v].seconds(probe, 2))
 
 
-def time_in_turn(scenes: dict, peers: dict, qs: np.ndarray, q_pin: list, repeats: int) -> tuple[dict, dict]:
-    """Best seconds over ``repeats`` rounds of one cold run of each spq scene and each pinocchio
-    peer over the configurations, in turn within each round; and spq's cold results per policy."""
-    best = {key: np.inf for key in [*scenes, *peers]}
-    outs = {}
-    for _ in range(repeats):
-        for variant, peer in peers.items():
-            best[variant] = min(best[variant], peer.seconds(q_pin, 1))
-        for policy, scene in scenes.items():
-            seconds, outs[policy] = rb.best_run(scene, qs, False, None, 1)
-            best[policy] = min(best[policy], seconds)
-    return best, outs
-
-
 def peer_agreement(peer, q_pin: list, spq_out: np.ndarray) -> tuple[float, int]:
     """(largest |pinocchio - spq| over pairs spq finds separated (m), overlap verdicts that disagree
     outside OVERLAP_BAND_M) at the configurations q_pin, against spq's PCH results spq_out."""
@@ -260,7 +246,7 @@ def _measure(name: str, config, scenes: dict, row: dict, notes: list) -> None:
     if peers:
         fastest = fastest_variant(peers, q_pin)
         peers = {fastest: peers[fastest]}
-    best, outs = time_in_turn(scenes, peers, qs, q_pin, config.repeats)
+    best, outs = rb.cold_beside_pinocchio(scenes, peers, qs, q_pin, config.repeats)
     ms = {k: 1e3 * v / len(qs) for k, v in best.items()}
     row.update(pch_cold_ms=ms["pch"], auto_cold_ms=ms.get("auto", np.nan))
     status = outs["pch"][:, :, OUT_STATUS]
