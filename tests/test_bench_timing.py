@@ -52,9 +52,10 @@ def test_every_job_runs_a_block_before_any_runs_the_next_and_the_results_come_in
     clock, log = FakeClock(), []
     jobs = {"ten": (fake_job(clock, "ten", 1.0, log), poses(10), poses(10)),
             "four": (fake_job(clock, "four", 1.0, log), poses(4), poses(4))}
-    timed = blocked_times(jobs, repeats=2, block=3, clock=clock)
-    one_round = [("ten", 0, 2), ("four", 0, 2), ("ten", 2, 3), ("four", 2, 2), ("ten", 5, 3), ("ten", 8, 2)]
+    timed = blocked_times(jobs, repeats=2, block=3, clock=clock, before_round=lambda: log.append("round"))
+    one_round = ["round", ("ten", 0, 2), ("four", 0, 2), ("ten", 2, 3), ("four", 2, 2), ("ten", 5, 3), ("ten", 8, 2)]
     assert log == one_round * 2
+    log[:] = [entry for entry in log if entry != "round"]
     assert blocked_calls(jobs, 2, 3) == len(log)
     for key, n in (("ten", 10), ("four", 4)):
         seconds, results = timed[key]

@@ -58,19 +58,23 @@ def block_bounds(n: int, block: int) -> list[tuple[int, int]]:
     return list(zip(edges[:-1], edges[1:]))
 
 
-def blocked_times(jobs: dict, repeats: int, block: int = BLOCK, progress=None, clock=time.perf_counter) -> dict:
+def blocked_times(jobs: dict, repeats: int, block: int = BLOCK, progress=None, clock=time.perf_counter,
+                  before_round=None) -> dict:
     """{key: (seconds, [result of each block])} for jobs {key: (fn, array, ...)}: fn takes the arrays
     (poses, configurations, an output to fill), all of one length, sliced alike along their first axis.
     In each of ``repeats`` rounds, block k of every job runs before block k + 1 of any (a job on
     fewer rows has fewer blocks); seconds is the sum over a job's blocks of its least time on each.
     The results are the last round's, in block order. progress: a tqdm bar advanced once per timed
-    call; clock: the timer (seconds)."""
+    call; clock: the timer (seconds); before_round: an untimed call at the start of each round (a
+    scene's reset, so that warm starts carried from block to block start alike in every round)."""
     if repeats < 1:
         raise ValueError(f"repeats must be at least 1, got {repeats}")
     bounds = {key: block_bounds(len(job[1]), block) for key, job in jobs.items()}
     least = {key: [math.inf] * len(b) for key, b in bounds.items()}
     results = {key: [None] * len(b) for key, b in bounds.items()}
     for _ in range(repeats):
+        if before_round is not None:
+            before_round()
         for k in range(max((len(b) for b in bounds.values()), default=0)):
             for key, (fn, *arrays) in jobs.items():
                 if k >= len(bounds[key]):

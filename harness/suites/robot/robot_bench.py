@@ -24,7 +24,6 @@ after checking spq's forward kinematics against pybullet's on the first random c
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -96,16 +95,9 @@ def best_run(scene: Scene, qs: np.ndarray, coherent: bool, prune: float | None, 
     scene.reset()
     scene.distances_many(qs[:2], coherent=coherent, prune=prune)  # compile / load the kernels
     out = result_array(len(qs), len(scene.pairs))
-    starts = range(0, len(qs), block)
-    best = np.full(len(starts), np.inf)
-    for _ in range(repeats):
-        scene.reset()
-        for i, s0 in enumerate(starts):
-            t0 = time.perf_counter()
-            scene.distances_many(qs[s0:s0 + block], coherent=coherent, prune=prune, out=out[s0:s0 + block],
-                                 workers=workers)
-            best[i] = min(best[i], time.perf_counter() - t0)
-    return float(best.sum()), out
+    run = lambda q, o: scene.distances_many(q, coherent=coherent, prune=prune, out=o, workers=workers)  # noqa: E731
+    seconds, _ = blocked_times({"run": (run, qs, out)}, repeats, block, before_round=scene.reset)["run"]
+    return seconds, out
 
 
 def signed_rows(scenes: dict, qs: np.ndarray, repeats: int, block: int = TIMING_BLOCK) -> pd.DataFrame:
