@@ -97,8 +97,8 @@ def _delay_from_env() -> float | None:
     try:
         value = float(text)
     except ValueError:
-        raise ValueError(f"{ENV} must be 0 or off (silenced) or a number of seconds > 0; got {text!r}") from None
-    if not value > 0 or value == float("inf"):
+        value = float("nan")
+    if not 0 < value < float("inf"):
         raise ValueError(f"{ENV} must be 0 or off (silenced) or a number of seconds > 0; got {text!r}")
     return value
 

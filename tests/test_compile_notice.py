@@ -74,15 +74,14 @@ def test_a_nested_compile_is_one_line_and_other_functions_are_not_reported():
 
     stream = Stream()
     notice = CompileNotice(stream, 0)  # announced at once
-    event = _event
-    notice.on_start(event("users.module", "mine"))  # not spq's: ignored, and so is its end
-    notice.on_end(event("users.module", "mine"))
+    notice.on_start(_event("users.module", "mine"))  # not spq's: ignored, and so is its end
+    notice.on_end(_event("users.module", "mine"))
     assert stream.text == ""
-    notice.on_start(event("spq.kernels.batch", "query_batch"))
-    notice.on_start(event("spq.kernels.gjk", "descend"))  # a callee compiled inside it
-    notice.on_end(event("spq.kernels.gjk", "descend"))
+    notice.on_start(_event("spq.kernels.batch", "query_batch"))
+    notice.on_start(_event("spq.kernels.gjk", "descend"))  # a callee compiled inside it
+    notice.on_end(_event("spq.kernels.gjk", "descend"))
     assert stream.text.count("\n") == 1
-    notice.on_end(event("spq.kernels.batch", "query_batch"))
+    notice.on_end(_event("spq.kernels.batch", "query_batch"))
     lines = stream.text.splitlines()
     assert len(lines) == 2 and "query_batch" in lines[0] and lines[1].startswith("spq: query_batch compiled in ")
 
