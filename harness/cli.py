@@ -389,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("tradeoff", help="speed against accuracy: engines' tolerances swept on one pose suite")
     p.add_argument("--per-bucket", type=int, default=None, help="poses per separated bucket (default 200; quick 10)")
-    p.add_argument("--repeats", type=int, default=None, help="timed runs per setting, best kept (default 5; quick 2)")
+    p.add_argument("--repeats", type=int, default=None, help="rounds of timed runs, each setting's least time kept (default 5; quick 2)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quick", action="store_true", help="small run (a few seconds)")

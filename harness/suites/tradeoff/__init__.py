@@ -7,12 +7,13 @@ import time
 from dataclasses import dataclass
 
 from harness.suites import Figure, Output, Table, frame_lines
+from harness.suites.bench.timing import BLOCK
 
 
 @dataclass
 class Config:
     per_bucket: int | None = None  # poses per separated bucket (None: 200; quick 10)
-    repeats: int | None = None  # timed runs per setting, best kept (None: 5; quick 2)
+    repeats: int | None = None  # rounds of timed runs, each setting's least time kept (None: 5; quick 2)
     seed: int = 0
     quick: bool = False
     progress: bool = False
@@ -35,8 +36,9 @@ def run(config: Config) -> Output:
     notes = (f"{cfg.object_a} against {cfg.object_b}, {len(suite)} separated distance-controlled poses "
              f"(harness.workloads.poses.bucket_suite, buckets {', '.join(cfg.buckets)}, {cfg.per_bucket} each, seed "
              f"{config.seed}; reference distances {suite.ref_distance.min():.3g} to {suite.ref_distance.max():.3g} m). "
-             "All engines on the same poses in the same run, best of "
-             f"{cfg.repeats} timed runs after a warm-up on 8 poses. spq: tol = rel_tol = tolerance (stops when "
+             "All engines on the same poses in the same run, side by side: in each of "
+             f"{cfg.repeats} rounds every setting runs once (in blocks of up to {BLOCK:,} poses, each block's least "
+             "time kept: harness.suites.bench.timing.blocked_times), after a warm-up on 8 poses. spq: tol = rel_tol = tolerance (stops when "
              "upper - lower bound <= tol + rel_tol * distance); coal: gjk_tolerance = tolerance; mujoco: ccd_tolerance = tolerance (native GJK/EPA); fcl, bullet "
              "(margin 0) and bullet-margin (pybullet's default margin) at their own settings. batched: one compiled "
              "call for all poses (cold starts); per-call: one Python call per query (spq.Pair keeps its warm start). "

@@ -2,14 +2,16 @@
 
 ``tradeoff``: one suite of distance-controlled, separated poses for two links, with exact reference
 distances (:func:`harness.workloads.poses.bucket_suite`). The engines that expose a tolerance (spq: ``tol`` =
-``rel_tol``; coal: ``gjk_tolerance``) are swept; each setting is timed on the same poses (best of
-``repeats``) and its distances compared to the reference (max and median absolute error). python-fcl
-and pybullet (margin 0 and its default margin) run once each at their own settings.
+``rel_tol``; coal: ``gjk_tolerance``; MuJoCo: ``ccd_tolerance``) are swept; every setting is timed on
+the same poses, side by side with the others (:func:`harness.suites.bench.timing.blocked_times`:
+``repeats`` rounds, each setting's least time per block kept), and its distances compared to the
+reference (max and median absolute error). python-fcl and pybullet (margin 0 and its default margin)
+run once each at their own settings.
 
 ``rtradeoff``: one link's hull vertices covered by STP-BVs at a fixed small radius r and a sweep of R
 from just above the smallest admissible R (r + radius of the smallest enclosing ball) upwards. Per R:
 the feature count (patches), the volume excess over the hull (Monte Carlo), the STP-PCH batched
-queries per second on random poses, and the witness-point Lipschitz ratio of the STP-PCH pair on
+queries per second on random poses (every R timed side by side, as above), and the witness-point Lipschitz ratio of the STP-PCH pair on
 :mod:`harness.suites.continuity.witness_continuity`'s parallel-face trajectory at one small step.
 """
 
@@ -23,7 +25,7 @@ import pandas as pd
 import spq
 from harness.report.charts import save_figure
 from harness.suites.bench.throughput import timing_modes
-from harness.suites.bench.timing import best_time
+from harness.suites.bench.timing import blocked_calls, blocked_times
 
 SEPARATED_BUCKETS = ("distant-1", "distant-0.5", "close-1e-1", "close-1e-2", "close-1e-3", "close-1e-4")
 FAIL_DISTANCE = 1e6  # m: |distance| above this is a failure (coal can return -DBL_MAX on a separated pose)
@@ -55,12 +57,8 @@ def quick_tradeoff_config(seed: int = 0, **overrides) -> TradeoffConfig:
     return TradeoffConfig(**settings)
 
 
-def _measure(pair, fn, suite, repeats: int) -> dict:
-    """Time ``fn(poses_a, poses_b)`` (best of ``repeats``, after a warm-up on 8 poses) and compare the
-    distances of the last timed run with the reference."""
-    pa, pb = suite.pose_a, suite.pose_b
-    fn(pa[:8], pb[:8])
-    seconds, dist = best_time(lambda: fn(pa, pb), repeats)
+def _scores(dist, suite, seconds: float) -> dict:
+    """Speed and errors of one setting's distances against the suite's reference."""
     dist = np.asarray(dist, dtype=float)
     failed = ~np.isfinite(dist) | (np.abs(dist) > FAIL_DISTANCE)
     err = np.abs(dist - suite.ref_distance)
@@ -88,14 +86,15 @@ def run_tradeoff(config: TradeoffConfig, load_object, progress: bool = False):
 
     a, b = load_object(config.object_a), load_object(config.object_b)
     suite = bucket_suite(a, b, config.per_bucket, config.seed, buckets=list(config.buckets))
-    jobs = [("spq", t) for t in config.spq_tols] + [("coal", t) for t in config.coal_tols]
+    settings = [("spq", t) for t in config.spq_tols] + [("coal", t) for t in config.coal_tols]
     if config.mujoco_tols and importlib.util.find_spec("mujoco") is not None:
-        jobs += [("mujoco", t) for t in config.mujoco_tols]
-    jobs += [(name, None) for name in config.others]
+        settings += [("mujoco", t) for t in config.mujoco_tols]
+    settings += [(name, None) for name in config.others]
     others = available_engines(list(config.others)) if config.others else {}
-    rows = []
+    pa, pb = suite.pose_a, suite.pose_b
+    prepared, timed_jobs = [], {}
     try:
-        for name, tol in tqdm(jobs, desc="tradeoff", unit="setting", disable=not progress):
+        for name, tol in settings:
             if name == "spq":
                 engine = SpqEngine(tol=tol, rel_tol=tol)
             elif name == "coal":
@@ -107,16 +106,23 @@ def run_tradeoff(config: TradeoffConfig, load_object, progress: bool = False):
             else:
                 engine = others[name]
             pair = engine.prepare(a, b)
-            try:
-                for mode, fn in timing_modes(pair):
-                    rows.append({"engine": name, "mode": mode, "tolerance": tol if tol is not None else np.nan,
-                                 "rel_tol": tol if name == "spq" else np.nan, "swept": tol is not None,
-                                 **_measure(pair, fn, suite, config.repeats)})
-            finally:
-                pair.close()
+            prepared.append(pair)
+            for mode, fn in timing_modes(pair):
+                fn(pa[:8], pb[:8])  # warm-up: compiled code loaded, first-call costs paid
+                timed_jobs[(name, tol, mode)] = (fn, pa, pb)
+        # every setting side by side, block by block, so that a shared machine's slow spell falls on all alike
+        with tqdm(total=blocked_calls(timed_jobs, config.repeats), desc="tradeoff", unit="run",
+                  disable=not progress) as bar:
+            timed = blocked_times(timed_jobs, config.repeats, progress=bar)
     finally:
+        for pair in prepared:
+            pair.close()
         for engine in others.values():
             engine.close()
+    rows = [{"engine": name, "mode": mode, "tolerance": tol if tol is not None else np.nan,
+             "rel_tol": tol if name == "spq" else np.nan, "swept": tol is not None,
+             **_scores(np.concatenate([np.asarray(d, dtype=float) for d in blocks]), suite, seconds)}
+            for (name, tol, mode), (seconds, blocks) in timed.items()]
     table = pd.DataFrame(rows)
     table["pareto_max"] = pareto_front(table.queries_per_s, table.max_abs_error.where(table.failures == 0, np.inf))
     table["pareto_median"] = pareto_front(table.queries_per_s, table.median_abs_error)
@@ -259,17 +265,26 @@ def run_rtradeoff(config: RTradeoffConfig, load_object, progress: bool = False) 
     hull_volume = float(ConvexHull(points).volume)
     R_min, Rs = r_values(points, config)
     poses_a, poses_b = random_poses(config.poses, config.seed, config.translation_range)
+    stps = [spq.STPBV.from_points(points, config.r, float(R)) for R in tqdm(Rs, desc="rtradeoff: STP-BVs", unit="R",
+                                                                             disable=not progress)]
+    jobs = {}
+    for i, stp in enumerate(stps):
+        spq.distances(stp, link, poses_a[:8], poses_b[:8])  # warm-up
+        jobs[i] = (lambda pa, pb, stp=stp: spq.distances(stp, link, pa, pb), poses_a, poses_b)
+    # every R side by side, block by block, so that a shared machine's slow spell falls on all alike
+    with tqdm(total=blocked_calls(jobs, config.repeats), desc="rtradeoff: speed", unit="run",
+              disable=not progress) as bar:
+        timed = blocked_times(jobs, config.repeats, progress=bar)
     rows = []
-    for R in tqdm(Rs, desc="rtradeoff", unit="R", disable=not progress):
-        stp = spq.STPBV.from_points(points, config.r, float(R))
-        fn = lambda: spq.distances(stp, link, poses_a, poses_b)  # noqa: E731
-        spq.distances(stp, link, poses_a[:8], poses_b[:8])
-        seconds, res = best_time(fn, config.repeats)
+    for i, (R, stp) in enumerate(tqdm(list(zip(Rs, stps)), desc="rtradeoff: volume, smoothness", unit="R",
+                                      disable=not progress)):
+        seconds, blocks = timed[i]
         volume = monte_carlo_volume(stp, config.volume_samples, config.seed)
         ratio, step, min_dist = stp_lipschitz(stp, link, config)
         rows.append({"R": float(R), "R_minus_R_min": float(R - R_min), "features": int(stp.n_patches),
                      "volume_m3": volume, "volume_excess": volume / hull_volume - 1.0,
-                     "queries_per_s": config.poses / seconds, "overlapping": int(np.sum(res.status == "overlapping")),
+                     "queries_per_s": config.poses / seconds,
+                     "overlapping": int(sum(np.sum(res.status == "overlapping") for res in blocks)),
                      "witness_lipschitz": ratio, "step_rad": step, "min_distance_m": min_dist})
     table = pd.DataFrame(rows)
     table.insert(0, "object", config.object_name)
