@@ -21,8 +21,10 @@ Faces are triangles in counter-clockwise order seen from outside, each knowing i
 neighbours; a new support point replaces the faces it sees by a fan over the horizon, which a
 depth-first walk from the expanded face collects in order. A fan that would hold a sliver (a plane
 ill-defined in floating point), face inwards or break the horizon's loop is not made: the polytope
-stays as it was, the bounds reached stay valid, and the caller reports them with status FAILED if
-they do not meet the tolerance.
+stays as it was and the bounds reached stay valid. The run then sets that face aside (at most
+MAX_BLOCKED of them) and goes on from the others, one of which may take in the same region of D from
+a better-conditioned side; the face's offset still counts in the upper bound. If the bounds do not
+meet the tolerance in the end, the caller reports them with status FAILED.
 
 Witness points: on the face of least offset, the barycentric coordinates of the origin's projection
 combine its corners' support points of A and of B, so that point_b - point_a = sd * normal and both
@@ -113,6 +115,10 @@ EPA_STEPS_PER_ITERATION = 32
 CERT_WINDOW = 2e-3  # relative: a face is certified from curved sets only within this of the depth's bound
 # (further below, its cap is too wide for the sets; trying every least face cost more than it saved)
 CAPS_AFTER = 128  # steps of a run before it takes the sphere caps (see epa_run)
+# Faces a run may set aside when floating point cannot make their expansion (see _block): a fan
+# along a ridge of D that its support points trace as a line (a boxy superellipsoid's straight edge
+# swept by a polytope's edge) can face inwards at one face and not at the next
+MAX_BLOCKED = 8
 
 # why the last run stopped, kept in the scratch (work[EPA_ROW + EPA_TMP, 3]) for diagnostics
 STOP_CLOSED, STOP_ITERATIONS, STOP_VERTICES, STOP_NO_PROGRESS = 1, 2, 3, 4
@@ -657,6 +663,31 @@ def _least_face(work, iw, top):
     return bf, best
 
 
+@kernel(inline="always")
+def _block(work, f):
+    """Set live face f aside: _least_face no longer picks it (its key +inf), while its certified
+    offset still bounds the depth (_blocked_least). An expansion that sees it replaces it as any
+    face; _unblock_all takes it back."""
+    work[at(EPA_ROW + EPA_CERTIFIED + f), 1] = math.inf
+
+
+@kernel
+def _blocked_least(work, iw, top):
+    """The least certified offset of the blocked faces (live, key +inf); +inf if none."""
+    best = math.inf
+    for f in range(top):
+        if _alive(iw, f) and work[at(EPA_ROW + EPA_CERTIFIED + f), 1] == math.inf:
+            best = min(best, certified(work, f))
+    return best
+
+
+@kernel
+def _unblock_all(work, iw, top):
+    for f in range(top):
+        if _alive(iw, f):
+            work[at(EPA_ROW + EPA_CERTIFIED + f), 1] = certified(work, f)
+
+
 # ------------------------------------------------------------------------------------------
 # witness points
 # ------------------------------------------------------------------------------------------
@@ -875,8 +906,16 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
     pd, pu0, pu1, pu2 = -math.inf, 0.0, 0.0, 0.0
     f, off = _least_face(work, iw, top)
     near = False  # whether upper is the distance to P (the origin outside it), witnesses in out
+    blocked = 0
     while True:
         f, off = _least_face(work, iw, top)
+        least = off
+        if blocked > 0:
+            if f < 0:  # every live face set aside: take them back and stop
+                _unblock_all(work, iw, top)
+                f, off = _least_face(work, iw, top)
+                break
+            least = min(off, _blocked_least(work, iw, top))
         if sides != 0 and off > 0.0 and off >= -lower * (1.0 - CERT_WINDOW) and not tried(work, f):
             set_tried(work, f, True)
             row = at(EPA_ROW + EPA_PLANES + f)
@@ -892,7 +931,7 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
                     pending, pd, pu0, pu1, pu2 = True, depth, u0, u1, u2
                 continue
         if off >= 0.0:
-            upper = min(upper, -off)
+            upper = min(upper, -least)  # (only faces of offset >= 0 are set aside)
             near = False
         else:
             d = _face_distance(work, iw, f)
@@ -942,6 +981,12 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
         stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
         if stop != 0:
+            if stop != STOP_FACE_SLOTS and off >= 0.0 and blocked < MAX_BLOCKED:
+                # the polytope stays as it was: go on from the other faces, one of which may see
+                # this support point from a better-conditioned side and replace the face
+                _block(work, f)
+                blocked += 1
+                continue
             break
         nv += 1
         if caps:
