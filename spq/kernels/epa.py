@@ -981,7 +981,8 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
         stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
         if stop != 0:
-            if stop != STOP_FACE_SLOTS and off >= 0.0 and blocked < MAX_BLOCKED:
+            stalled = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
+            if not stalled and stop != STOP_FACE_SLOTS and off >= 0.0 and blocked < MAX_BLOCKED:
                 # the polytope stays as it was: go on from the other faces, one of which may see
                 # this support point from a better-conditioned side and replace the face
                 _block(work, f)
@@ -991,9 +992,10 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         nv += 1
         if caps:
             lower = _exact_deepest(pair, nv - 1, lower, warm, work)
-    if not closed and (stop == STOP_HORIZON or stop == STOP_FAN_SLIVER or stop == STOP_FAN_INWARD):
+    if not closed and (blocked > 0 or stop == STOP_HORIZON or stop == STOP_FAN_SLIVER or stop == STOP_FAN_INWARD):
         # an expansion that floating point cannot make (a support point on a horizon edge's line) is
-        # a stall as much as a support point on the face: the same slack settles it
+        # a stall as much as a support point on the face: the same slack settles it, here or at the
+        # end of a run that set such faces aside (a run within it at the failure stops there)
         closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
     work[EPA_ROW + EPA_TMP, 3] = STOP_CLOSED if closed else stop
     if off < 0.0 and not near:
