@@ -11,8 +11,9 @@ run once each at their own settings.
 ``rtradeoff``: one link's hull vertices covered by STP-BVs at a fixed small radius r and a sweep of R
 from just above the smallest admissible R (r + radius of the smallest enclosing ball) upwards. Per R:
 the feature count (patches), the volume excess over the hull (Monte Carlo), the STP-PCH batched
-queries per second on random poses (every R timed side by side, as above), and the witness-point Lipschitz ratio of the STP-PCH pair on
-:mod:`harness.suites.continuity.witness_continuity`'s parallel-face trajectory at one small step.
+queries per second on random poses (every R timed side by side, as above), and the witness-point
+Lipschitz ratio of the STP-PCH pair on :mod:`harness.suites.continuity.witness_continuity`'s
+parallel-face trajectory at one small step.
 """
 
 from __future__ import annotations
