@@ -23,8 +23,10 @@ depth-first walk from the expanded face collects in order. A fan that would hold
 ill-defined in floating point), face inwards or break the horizon's loop is not made: the polytope
 stays as it was and the bounds reached stay valid. The run then sets that face aside (at most
 MAX_BLOCKED of them) and goes on from the others, one of which may take in the same region of D from
-a better-conditioned side; the face's offset still counts in the upper bound. If the bounds do not
-meet the tolerance in the end, the caller reports them with status FAILED.
+a better-conditioned side. The face still counts in the upper bound, by its certified offset or by
+its triangle's distance from the origin, whichever is larger: such a face is typically a sliver
+along a ridge of D, whose plane may pass near the origin while the triangle itself lies far from it.
+If the bounds do not meet the tolerance in the end, the caller reports them with status FAILED.
 
 Witness points: on the face of least offset, the barycentric coordinates of the origin's projection
 combine its corners' support points of A and of B, so that point_b - point_a = sd * normal and both
@@ -158,6 +160,13 @@ def _set_adj(iw, f, k, g):
 @kernel(inline="always")
 def _alive(iw, f):
     return iw[at(EPA_IOFF + EPA_ALIVE + f)] == 1
+
+
+@kernel(inline="always")
+def _set_flag(iw, f, alive):
+    """Face f's flag alone: _horizon marks the faces it collects, and keeps their keys until the
+    expansion is made (_expand), so that undoing it (_revive) leaves them as they were."""
+    iw[at(EPA_IOFF + EPA_ALIVE + f)] = 1 if alive else 0
 
 
 @kernel(inline="always")
@@ -550,7 +559,7 @@ def _horizon(work, iw, f0, w, stamp, eps):
     nd = 1
     sp = 0
     _set_stamp(iw, f0, stamp)
-    _set_alive(work, iw, f0, False)
+    _set_flag(iw, f0, False)
     iw[at(base + EPA_DEAD)] = f0
     iw[at(base + EPA_STACK)] = f0
     iw[at(base + EPA_STACK + 1)] = 0
@@ -569,7 +578,7 @@ def _horizon(work, iw, f0, w, stamp, eps):
             continue  # both sides dead: an inner edge
         if _stamp(iw, g) != stamp and _height(work, g, w) > eps:
             _set_stamp(iw, g, stamp)
-            _set_alive(work, iw, g, False)
+            _set_flag(iw, g, False)
             iw[at(base + EPA_DEAD + nd)] = g
             nd += 1
             sp += 1
@@ -595,10 +604,11 @@ def _horizon(work, iw, f0, w, stamp, eps):
 
 
 @kernel
-def _revive(work, iw, nd):
-    """Undo _horizon: the nd faces it marked dead live again."""
+def _revive(iw, nd):
+    """Undo _horizon: the nd faces it marked dead live again, their keys untouched (a face set aside
+    stays aside)."""
     for i in range(nd):
-        _set_alive(work, iw, iw[EPA_IOFF + EPA_DEAD + i], True)
+        _set_flag(iw, iw[EPA_IOFF + EPA_DEAD + i], True)
 
 
 @kernel(inline="always")
@@ -609,10 +619,10 @@ def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
     w = work[_row(wv)]
     nh, nd = _horizon(work, iw, f0, w, stamp, eps)
     if nh < 0:
-        _revive(work, iw, nd)
+        _revive(iw, nd)
         return STOP_HORIZON, top
     if iw[EPA_IOFF + EPA_NFREE] + nd + EPA_MAX_FACES - top < nh:
-        _revive(work, iw, nd)
+        _revive(iw, nd)
         return STOP_FACE_SLOTS, top
     for i in range(nh):  # every fan face must have a well-defined outward plane
         h = EPA_IOFF + EPA_HORIZON + 4 * i
@@ -620,12 +630,13 @@ def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
         if code == PLANE_SLIVER:
             code, n0, n1, n2, off = _sliver_plane(work, iw[h + 2], iw[h], iw[h + 1], wv, c0, c1, c2)
         if code != PLANE_OK:
-            _revive(work, iw, nd)
+            _revive(iw, nd)
             return STOP_FAN_SLIVER if code == PLANE_SLIVER else STOP_FAN_INWARD, top
         row = EPA_ROW + EPA_FAN + i
         work[row, 0], work[row, 1], work[row, 2], work[row, 3] = n0, n1, n2, off
     for i in range(nd):  # the dead faces' slots become free
         f = iw[EPA_IOFF + EPA_DEAD + i]
+        _set_alive(work, iw, f, False)
         nfree = iw[EPA_IOFF + EPA_NFREE]
         iw[EPA_IOFF + EPA_FREE + nfree] = f
         iw[EPA_IOFF + EPA_NFREE] = nfree + 1
@@ -673,11 +684,17 @@ def _block(work, f):
 
 @kernel
 def _blocked_least(work, iw, top):
-    """The least certified offset of the blocked faces (live, key +inf); +inf if none."""
+    """The least bound of the blocked faces (live, key +inf) on the depth, +inf if none: each face's
+    certified offset or the distance from the origin to its triangle, whichever is larger.
+
+    The distance is a bound too: a point of B(0, r) outside P leaves P through some face's triangle
+    at a point no farther than r, so a face whose triangle lies farther than r from the origin needs
+    no certificate at r. It matters here because a face that cannot be expanded is typically a
+    sliver along a ridge, whose plane passes near the origin while its triangle lies far from it."""
     best = math.inf
     for f in range(top):
         if _alive(iw, f) and work[at(EPA_ROW + EPA_CERTIFIED + f), 1] == math.inf:
-            best = min(best, certified(work, f))
+            best = min(best, max(certified(work, f), _face_distance(work, iw, f)))
     return best
 
 
