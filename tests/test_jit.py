@@ -86,33 +86,42 @@ def twice():
 _RUN = "from pkg.kernels.b import twice; print(twice(), sum(twice.stats.cache_hits.values()))"
 
 
-def test_a_cached_kernel_is_compiled_anew_when_a_kernel_it_inlines_changes(tmp_path):
-    # numba stamps b's cache with b.py alone: without spq.kernels.jit's digest of every kernel file,
-    # editing a.py (inlined into b) left b's old machine code running from the cache
+def _stamp_runs(tmp_path, first_import: str = "") -> list[tuple[float, int]]:
+    """b (inlining a) run in fresh processes, a edited in between: (result, cache hits) of each run.
+    first_import: a statement run before b's import (another package's kernels)."""
     import shutil
-    import subprocess
-    import sys
-    from pathlib import Path
 
     import spq.kernels.jit as jit
 
+    for name in ("pkg", "other"):
+        kernels = tmp_path / name / "kernels"
+        kernels.mkdir(parents=True)
+        (tmp_path / name / "__init__.py").write_text("")
+        (kernels / "__init__.py").write_text("")
+        shutil.copy(Path(jit.__file__), kernels / "jit.py")
     kernels = tmp_path / "pkg" / "kernels"
-    kernels.mkdir(parents=True)
-    (tmp_path / "pkg" / "__init__.py").write_text("")
-    (kernels / "__init__.py").write_text("")
-    shutil.copy(Path(jit.__file__), kernels / "jit.py")
     (kernels / "b.py").write_text(_KERNEL_B)
 
     def run(value: float) -> tuple[float, int]:
         (kernels / "a.py").write_text(_KERNEL_A.format(value=value))
-        out = subprocess.run([sys.executable, "-c", _RUN], cwd=tmp_path, capture_output=True, text=True,
-                             check=True).stdout.split()
+        out = subprocess.run([sys.executable, "-c", first_import + _RUN], cwd=tmp_path, capture_output=True,
+                             text=True, check=True).stdout.split()
         return float(out[0]), int(out[1])
 
-    assert run(1.0) == (2.0, 0)  # compiled and cached
-    assert run(1.0) == (2.0, 1)  # from the cache
-    assert run(5.0) == (10.0, 0)  # a.py changed: compiled anew, not the stale 2.0
-    assert run(5.0) == (10.0, 1)
+    return [run(1.0), run(1.0), run(5.0), run(5.0)]
+
+
+def test_a_cached_kernel_is_compiled_anew_when_a_kernel_it_inlines_changes(tmp_path):
+    # numba stamps b's cache with b.py alone: without spq.kernels.jit's digest of every kernel file,
+    # editing a.py (inlined into b) left b's old machine code running from the cache
+    # compiled and cached; from the cache; a.py changed: compiled anew, not the stale 2.0; from the cache
+    assert _stamp_runs(tmp_path) == [(2.0, 0), (2.0, 1), (10.0, 0), (10.0, 1)]
+
+
+def test_a_second_copy_of_the_kernels_in_one_process_keeps_its_own_stamp(tmp_path):
+    # a same-process A/B imports an older copy of spq first: its stamp was the only one installed, and
+    # this copy's kernels fell back to numba's per-file stamps (stale after an edit of a.py alone)
+    assert _stamp_runs(tmp_path, "import other.kernels.jit; ") == [(2.0, 0), (2.0, 1), (10.0, 0), (10.0, 1)]
 
 
 @kernel(cache=False)

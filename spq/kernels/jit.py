@@ -65,11 +65,13 @@ def _install_cache_stamp() -> None:
              ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")]
     if impl is None or not isinstance(getattr(impl, "_locator_classes", None), list) or None in bases:
         return
-    if any(getattr(c, "_spq_kernels", False) for c in impl._locator_classes):
+    # keyed by this folder: a second copy of the package in the same process (a same-process A/B
+    # against an older spq) installs its own, or its kernels would fall back to numba's per-file stamps
+    if any(getattr(c, "_spq_kernels", None) == KERNELS_DIR for c in impl._locator_classes):
         return
 
     class _KernelsStamp:
-        _spq_kernels = True
+        _spq_kernels = KERNELS_DIR
 
         @classmethod
         def from_function(cls, py_func, py_file):
