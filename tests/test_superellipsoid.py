@@ -589,3 +589,19 @@ def test_a_pointy_needle_builds_its_inner_polytope():
     r = spq.distance(s, spq.Sphere(0.01), np.eye(4), ball)
     assert r.status == "separated"
     assert r.distance == pytest.approx(0.5 - a - 0.01, abs=1e-9)
+
+
+def test_a_flat_diamond_builds_its_inner_polytope():
+    """e1 near 2 and c 30 times smaller than a and b (fuzz campaign seed 79, case 593): the tips are
+    the support only within 2 degrees of the poles, which the lattice misses, so every support lay on
+    the rim, a flat cloud, and the query raised. The distance along z to a ball is by hand."""
+    a, b, c = 3.5779274090865605, 3.4113603976981994, 0.11904480993764104
+    s = spq.Superellipsoid(a, b, c, 1.889471166730982, 1.7905347051727012)
+    inner = s.inner_polytope()
+    assert (implicit_F(inner.vertices, a, b, c, s.e1, s.e2) <= 1.0).all()
+    assert inner.vertices[:, 2].max() == pytest.approx(c, rel=1e-8)
+    ball = np.eye(4)
+    ball[2, 3] = 0.5
+    r = spq.distance(s, spq.Sphere(0.01), np.eye(4), ball)
+    assert r.status == "separated"
+    assert r.distance == pytest.approx(0.5 - c - 0.01, abs=1e-9)

@@ -115,7 +115,13 @@ class Superellipsoid(Shape):
         except ValueError:
             # exponents near 2 (a diamond's tips) or near 0 (a box's flat sides) send many directions
             # to nearly one point, and qhull's precision check can refuse such a cloud (fuzz campaign,
-            # seed 0, case 1108): drop the points within 1e-7 of the body's size of one kept
+            # seed 0, case 1108): drop the points within 1e-7 of the body's size of one kept. A flat
+            # diamond (e1 near 2, c << a, b) sends every direction of the lattice to its rim, a flat
+            # cloud (seed 79, case 593): its tips, the supports along +-z, and those along +-x and
+            # +-y, are taken too, so the hull spans the body's three extents
+            axes = np.vstack([np.eye(3), -np.eye(3)])
+            points = np.vstack([points, support_many(kinds.SUPERELLIPSOID, self._core, _NO_IDATA, axes)
+                                * (1.0 - INNER_SHRINK)])
             scale = float(np.abs(points).max())
             _, keep = np.unique(np.round(points / scale, 7), axis=0, return_index=True)
             return Polyhedron.from_points(points[np.sort(keep)])
