@@ -486,7 +486,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--state", help="campaign state file: resumed when it exists, written after every round")
     p.add_argument("--no-shrink", dest="shrink", action="store_false", help="do not shrink the failing cases")
     p.add_argument("--fixtures", help="folder for the shrunk reproducers (default tests/fixtures/fuzz)")
-    p.add_argument("--plant", help="a planted bug to find (early-stop)")
+    p.add_argument("--plant", help="a planted bug to find (early-stop, refuse-cse)")
     p.add_argument("--out", default=str(DEFAULT_OUT))
     p.add_argument("--quiet", action="store_true")
     _spread_arguments(p, "task of cases")

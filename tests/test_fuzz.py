@@ -46,9 +46,8 @@ def test_judge_clears_spq_and_catches_a_planted_early_stop():
     spq_rows = [c for c in clean.counts if c["engine"] == "spq"]
     assert sum(c["referenced"] for c in spq_rows) > 0
     assert sum(c["wrong"] + c["failed"] + c["disputed"] for c in spq_rows) == 0
-    shapes, outputs = planted("early-stop")(a, b, pa, pb)
-    bad = judge_case("hull-random", a, b, pa, pb, np.random.default_rng(0), {}, sample=1.0, spq_shapes=shapes,
-                     outputs=outputs)
+    bad = judge_case("hull-random", a, b, pa, pb, np.random.default_rng(0), {}, sample=1.0,
+                     plant=planted("early-stop"))
     assert sum(c["wrong"] for c in bad.counts if c["engine"] == "spq") > 0
 
 
@@ -59,9 +58,7 @@ def test_shrinker_brings_a_planted_bug_down_to_ten_points():
     plant = planted("early-stop")
     for k in range(20):  # the first hull-random case with a wrong planted answer
         a, b, pa, pb, _ = draw_case("hull-random", np.random.default_rng([0, k]), 40)
-        shapes, outputs = plant(a, b, pa, pb)
-        r = judge_case("hull-random", a, b, pa, pb, np.random.default_rng(0), {}, sample=1.0, spq_shapes=shapes,
-                       outputs=outputs)
+        r = judge_case("hull-random", a, b, pa, pb, np.random.default_rng(0), {}, sample=1.0, plant=plant)
         wrong = [x for x in r.bad if x.verdict == "wrong"]
         if wrong and points_count(case_of(wrong[0])) > 20:
             break
@@ -84,6 +81,32 @@ def test_campaign_resumes_where_it_stopped(tmp_path):
     assert table(resumed).equals(table(whole))
     with pytest.raises(ValueError, match="same settings"):
         run(CampaignConfig(seed=6, families=["primitives"], poses=30, peers=[]), state, max_queries=1)
+
+
+def test_a_case_on_which_spq_raises_is_recorded_and_the_campaign_goes_on(tmp_path):
+    """The planted refusal raises on every superellipsoid case: each is counted failed in both modes
+    and kept as a 'raised' case with its message, the other family's cases are judged as usual, the
+    campaign runs to its query count, and the shrinker keeps the raising shapes as drawn."""
+    from harness.suites.fuzz.campaign import CampaignConfig, run, table
+    from harness.suites.fuzz.shrink import case_of, shrink, still_bad
+
+    config = CampaignConfig(seed=2, families=["primitives", "cse"], poses=20, peers=[], cases_per_task=1,
+                            plant="refuse-cse")
+    state = run(config, tmp_path / "state.json", max_queries=4 * 40, tasks_per_round=2)
+    assert state.next_case == 4
+    t = table(state).set_index(["family", "mode"])
+    assert (t.loc["cse", "failed"] == t.loc["cse", "queries"]).all() and (t.loc["cse", "queries"] == 40).all()
+    assert (t.loc["primitives", "failed"] == 0).all()
+    raised = [b for b in state.bad if b["verdict"] == "raised"]
+    assert {b["mode"] for b in raised} == {"unsigned", "signed"} and len(raised) == 4
+    assert all(b["family"] == "cse" and "inner polytope is refused" in b["detail"] for b in raised)
+    from harness.suites.fuzz.plant import planted
+
+    case = case_of(raised[0])
+    small = shrink(case, budget=20, plant=planted("refuse-cse"))
+    assert small["a"] == case["a"] and small["b"] == case["b"]
+    assert still_bad(small, planted("refuse-cse")) and not still_bad(small)
+    assert not still_bad({**small, "detail": "ValueError: another message"}, planted("refuse-cse"))
 
 
 def _fixtures():

@@ -98,7 +98,9 @@ def run(config: Config) -> Output:
     lines = [f"spq fuzz: {state.spq_queries():,} spq queries over {state.next_case} cases ({describe(config.workers, config.scheduler)}, "
              f"{state.seconds:.0f} s in all)"]
     if totals:
-        lines.append(f"spq: {totals['wrong']} wrong, {totals['failed']} failed, {totals['disputed']} disputed")
+        raised = sum(b["verdict"] == "raised" for b in state.bad)
+        lines.append(f"spq: {totals['wrong']} wrong, {totals['failed']} failed, {totals['disputed']} disputed"
+                     + (f" ({raised} cases kept that raised: each of their queries counted failed)" if raised else ""))
     doc = ["# Where each engine fails: the fuzz campaign", "",
            _notes(config, state, cc), "", "## Families", "",
            *[f"- **{f}**: {FAMILY_NOTES[f]}" for f in cc.family_names()], "",
@@ -124,7 +126,8 @@ def _notes(config, state, cc) -> str:
             "(independent support functions), its unsigned and signed answers against each other, and on polytope "
             "pairs the peers' answers against the interval; every disagreement, every failed query and a random "
             f"{config.sample:g} share go to the exact Minkowski reference (two polytopes) or the depth oracle. "
-            "wrong: outside the reference beyond rounding; failed: status failed (spq), a failed or crashed query "
+            "wrong: outside the reference beyond rounding; failed: status failed, or every query of a case on which "
+            "spq raised (kept as a 'raised' reproducer with its message) (spq), a failed or crashed query "
             "(peers); disputed: spq's lower bound above every value the oracle certified, even after a denser run "
             "(spq), or a peer's disagreement with spq's interval beyond its tolerance not referenced (a peer's "
             "referenced disagreements are capped per case). Peers take the polytope pairs only (meshes).")

@@ -114,8 +114,7 @@ def run_task(task: dict) -> dict:
         family = families[k % len(families)]
         rng = np.random.default_rng([config.seed, k])
         a, b, pa, pb, _ = draw_case(family, rng, config.poses)
-        shapes, outputs = (None, None) if plant is None else plant(a, b, pa, pb)
-        r = judge_case(family, a, b, pa, pb, rng, peers, config.sample, spq_shapes=shapes, outputs=outputs)
+        r = judge_case(family, a, b, pa, pb, rng, peers, config.sample, plant=plant)
         counts.extend(r.counts)
         for x in r.bad:
             bad.append({**x.as_dict(), "case": k})

@@ -152,11 +152,16 @@ def peer_tol(name: str, value: float, overlap: bool) -> float:
 
 
 def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict, sample: float,
-               peer_references: int = 8, spq_shapes=None, outputs=None, modes=MODES) -> CaseResult:
+               peer_references: int = 8, plant=None, modes=MODES) -> CaseResult:
     """Every query of one case judged (module docstring). peers: {name: Engine} (polytope pairs only);
-    sample: share of spq's queries sent to the reference whatever the cheap checks said. spq_shapes,
-    outputs: to judge another spq (a planted bug): its shapes and its {mode: output rows}. modes: the
-    modes whose spq answers are judged (both are computed: each checks the other)."""
+    sample: share of spq's queries sent to the reference whatever the cheap checks said. plant: to judge
+    another spq (harness.suites.fuzz.plant), a function of (spec A, spec B, poses) giving its shapes and
+    its {mode: output rows}. modes: the modes whose spq answers are judged (both are computed: each
+    checks the other).
+
+    A case on which spq raises (building a shape the family drew as valid, or answering) is judged
+    whole: every query of each judged mode 'failed', one Bad per mode with the verdict 'raised' and the
+    exception as its detail; the peers are not judged (there is no spq answer to hold them to)."""
     import time
 
     from harness.suites.fuzz.oracle import oracle_shape, spq_shape
@@ -164,8 +169,13 @@ def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict
     result = CaseResult()
     t0 = time.perf_counter()
     oa, ob = oracle_shape(a), oracle_shape(b)
-    A, B = spq_shapes if spq_shapes is not None else (spq_shape(a), spq_shape(b))
-    out = outputs if outputs is not None else spq_outputs(A, B, poses_a, poses_b)
+    try:
+        if plant is None:
+            out = spq_outputs(spq_shape(a), spq_shape(b), poses_a, poses_b)
+        else:
+            _, out = plant(a, b, poses_a, poses_b)
+    except Exception as e:  # noqa: BLE001 - any exception spq raises is a finding, not the campaign's end
+        return _raised(family, a, b, poses_a, poses_b, modes, e)
     t1 = time.perf_counter()
     n = len(poses_a)
     s = slack(poses_a, poses_b, oa, ob)
@@ -241,6 +251,21 @@ def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict
                                              family, peer_references))
     t4 = time.perf_counter()
     result.seconds = {"spq": t1 - t0, "checks": t2 - t1, "reference": t3 - t2, "peers": t4 - t3}
+    return result
+
+
+def raised_detail(error: BaseException) -> str:
+    """How a 'raised' verdict names its exception: type and message, which a replay must match."""
+    return f"{type(error).__name__}: {error}"
+
+
+def _raised(family, a, b, poses_a, poses_b, modes, error) -> CaseResult:
+    result = CaseResult()
+    n = len(poses_a)
+    for mode in modes:
+        result.counts.append({"family": family, "engine": "spq", "mode": mode, "queries": n, "wrong": 0,
+                              "failed": n, "referenced": 0, "disputed": 0, "worst_error_m": 0.0})
+        result.bad.append(_bad(family, a, b, poses_a[0], poses_b[0], mode, "raised", raised_detail(error)))
     return result
 
 

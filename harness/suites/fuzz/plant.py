@@ -4,11 +4,14 @@
 its bounds as closed (lower bound = upper bound = the distance it stopped at), the behaviour of a
 search that quits an iteration or more too early yet claims convergence. On a round body it returns a
 distance slightly too large with a certificate that excludes the true one.
+
+``refuse-cse``: packing a superellipsoid raises a ValueError, as the inner polytope of a flat diamond
+once did (docs/notes/speed-45.md, stop 78): the campaign must record such a case as 'raised' and go on.
 """
 
 from __future__ import annotations
 
-PLANTS = ("early-stop",)
+PLANTS = ("early-stop", "refuse-cse")
 EARLY_STOP_REL = 1e-2
 
 
@@ -18,7 +21,7 @@ def planted(name: str | None):
         return None
     if name not in PLANTS:
         raise ValueError(f"unknown planted bug {name!r}; choose from {list(PLANTS)}")
-    return _early_stop
+    return {"early-stop": _early_stop, "refuse-cse": _refuse_cse}[name]
 
 
 def _early_stop(a: dict, b: dict, poses_a, poses_b):
@@ -31,3 +34,13 @@ def _early_stop(a: dict, b: dict, poses_a, poses_b):
     for rows in out.values():
         rows[:, OUT_LOWER] = rows[:, OUT_UPPER]
     return (A, B), out
+
+
+def _refuse_cse(a: dict, b: dict, poses_a, poses_b):
+    from harness.suites.fuzz.judge import spq_outputs
+    from harness.suites.fuzz.oracle import spq_shape
+
+    if "cse" in (a["kind"], b["kind"]):
+        raise ValueError("planted: a superellipsoid's inner polytope is refused")
+    A, B = spq_shape(a), spq_shape(b)
+    return (A, B), spq_outputs(A, B, poses_a, poses_b)
