@@ -26,7 +26,13 @@ MAX_BLOCKED of them) and goes on from the others, one of which may take in the s
 a better-conditioned side. The face still counts in the upper bound, by its certified offset or by
 its triangle's distance from the origin, whichever is larger: such a face is typically a sliver
 along a ridge of D, whose plane may pass near the origin while the triangle itself lies far from it.
-If the bounds do not meet the tolerance in the end, the caller reports them with status FAILED.
+A run that would end short of the tolerance after such faces takes them back once and goes on
+leniently: a fan that cannot be made is tried again with the faces whose planes the point lies just
+below (LENIENT_REL) replaced too, on a nearly flat stretch of D where the point is within rounding
+of them. P then drops those faces' other corners from its boundary and is no longer exactly convex,
+but it still lies in D (its boundary is a closed surface of D's points about the origin), so its
+faces still bound the depth. If the bounds do not meet the tolerance in the end, the caller reports
+them with status FAILED.
 
 Witness points: on the face of least offset, the barycentric coordinates of the origin's projection
 combine its corners' support points of A and of B, so that point_b - point_a = sd * normal and both
@@ -121,6 +127,11 @@ CAPS_AFTER = 128  # steps of a run before it takes the sphere caps (see epa_run)
 # along a ridge of D that its support points trace as a line (a boxy superellipsoid's straight edge
 # swept by a polytope's edge) can face inwards at one face and not at the next
 MAX_BLOCKED = 8
+# A run that would end FAILED after such expansions goes on once more with the set-aside faces taken
+# back, each failed expansion retried with the faces its point lies within this (relative to the
+# polytope's size) below also replaced (see epa_run). A run that closes never takes it, so its
+# result does not depend on it.
+LENIENT_REL = 1e-9
 
 # why the last run stopped, kept in the scratch (work[EPA_ROW + EPA_TMP, 3]) for diagnostics
 STOP_CLOSED, STOP_ITERATIONS, STOP_VERTICES, STOP_NO_PROGRESS = 1, 2, 3, 4
@@ -698,6 +709,17 @@ def _blocked_least(work, iw, top):
     return best
 
 
+@kernel(inline="always")
+def _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, stop):
+    """Whether a run about to stop goes on in lenient mode (LENIENT_REL): once, when expansions that
+    floating point could not make stopped it and the bounds have not met even the stall's slack."""
+    if lenient or closed or not off >= 0.0:
+        return False
+    if not (blocked > 0 or stop == STOP_HORIZON or stop == STOP_FAN_SLIVER or stop == STOP_FAN_INWARD):
+        return False
+    return not upper - lower <= STALL_SLACK * abs(upper) + tol_abs
+
+
 @kernel
 def _unblock_all(work, iw, top):
     for f in range(top):
@@ -924,6 +946,7 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
     f, off = _least_face(work, iw, top)
     near = False  # whether upper is the distance to P (the origin outside it), witnesses in out
     blocked = 0
+    lenient = False  # the last resort of a run stopped by expansions floating point could not make
     while True:
         f, off = _least_face(work, iw, top)
         least = off
@@ -931,6 +954,9 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             if f < 0:  # every live face set aside: take them back and stop
                 _unblock_all(work, iw, top)
                 f, off = _least_face(work, iw, top)
+                if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, STOP_FAN_INWARD):
+                    lenient, blocked = True, 0
+                    continue
                 break
             least = min(off, _blocked_least(work, iw, top))
         if sides != 0 and off > 0.0 and off >= -lower * (1.0 - CERT_WINDOW) and not tried(work, f):
@@ -988,6 +1014,10 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             # nothing of D beyond this face: the bounds are as good as this precision allows
             closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
             stop = STOP_NO_PROGRESS
+            if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, stop):
+                lenient, blocked = True, 0
+                _unblock_all(work, iw, top)
+                continue
             break
         _keep_support(work, iw, warm, nv)
         if caps:
@@ -997,6 +1027,12 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             clear_sphere(work, nv)
         iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
         stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
+        if stop != 0 and stop != STOP_FACE_SLOTS and lenient:
+            # the point lies within rounding of the planes of faces that do not see it (a nearly flat
+            # stretch of D): replace those too. Their corners off the horizon leave P's boundary, which
+            # passes below them: P shrinks, still lies in D, and its faces still bound the depth
+            iw[EPA_IOFF + EPA_CLOCK] += 1
+            stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, -LENIENT_REL * size, c0, c1, c2)
         if stop != 0:
             stalled = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
             if not stalled and stop != STOP_FACE_SLOTS and off >= 0.0 and blocked < MAX_BLOCKED:
@@ -1004,6 +1040,10 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
                 # this support point from a better-conditioned side and replace the face
                 _block(work, f)
                 blocked += 1
+                continue
+            if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, stop):
+                lenient, blocked = True, 0
+                _unblock_all(work, iw, top)
                 continue
             break
         nv += 1
