@@ -273,7 +273,7 @@ def coherent_ball_finish(pair, tol, dir_in, warm, work, out):
     out[OUT_POINT_B], out[OUT_POINT_B + 1], out[OUT_POINT_B + 2] = b0, b1, b2
     out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = g0, g1, g2
     out[OUT_DISTANCE] = upper
-    out[OUT_LOWER] = slab
+    out[OUT_LOWER] = min(slab, upper)  # the two may cross by rounding (a few ulps)
     out[OUT_STATUS] = TOUCHING if upper <= tol_abs else SEPARATED
     # the new warm start: the patch, the last support vertex and the simplex's vertices (the centre's ids 0)
     warm[WARM_FEATURE_A + 1 - side_p] = patch

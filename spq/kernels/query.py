@@ -336,7 +336,7 @@ def _close_gap(kA, kB, sa, sb, m, tol_abs, tol_rel, out):
     slab = m0 * (sb0 - sa0) + m1 * (sb1 - sa1) + m2 * (sb2 - sa2)
     if slab > 0.0 and upper - slab <= tol_abs + tol_rel * upper:
         out[OUT_DISTANCE] = upper
-        out[OUT_LOWER] = slab
+        out[OUT_LOWER] = min(slab, upper)  # the two may cross by rounding (a few ulps)
         out[OUT_NORMAL] = gx / upper
         out[OUT_NORMAL + 1] = gy / upper
         out[OUT_NORMAL + 2] = gz / upper
