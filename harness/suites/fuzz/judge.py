@@ -155,8 +155,8 @@ def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict
                peer_references: int = 8, plant=None, modes=MODES) -> CaseResult:
     """Every query of one case judged (module docstring). peers: {name: Engine} (polytope pairs only);
     sample: share of spq's queries sent to the reference whatever the cheap checks said. plant: to judge
-    another spq (harness.suites.fuzz.plant), a function of (spec A, spec B, poses) giving its shapes and
-    its {mode: output rows}. modes: the modes whose spq answers are judged (both are computed: each
+    another spq (harness.suites.fuzz.plant), a function of (spec A, spec B, poses) giving its
+    {mode: output rows}. modes: the modes whose spq answers are judged (both are computed: each
     checks the other).
 
     A case on which spq raises (building a shape the family drew as valid, or answering) is judged
@@ -173,7 +173,7 @@ def judge_case(family: str, a: dict, b: dict, poses_a, poses_b, rng, peers: dict
         if plant is None:
             out = spq_outputs(spq_shape(a), spq_shape(b), poses_a, poses_b)
         else:
-            _, out = plant(a, b, poses_a, poses_b)
+            out = plant(a, b, poses_a, poses_b)
     except Exception as e:  # noqa: BLE001 - any exception spq raises is a finding, not the campaign's end
         return _raised(family, a, b, poses_a, poses_b, modes, e)
     t1 = time.perf_counter()
