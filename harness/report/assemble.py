@@ -561,7 +561,7 @@ SUITES = [
           depth_section, timed=False),
     Suite("bench robot", "robot", _config("robot", robot=report_robot,
                                           configs={"quick": 40, "standard": 300, "full": None},
-                                          steps={"quick": 200, "standard": 300, "full": None}, repeats=ONE,
+                                          steps={"quick": 200, "standard": 300, "full": None}, repeats=ONE, passes=ONE,
                                           engine_configs={"quick": 10, "standard": 50, "full": None}),
           robot_section),
     Suite("bench robots", "robots", _config("robots", quick=QUICK, configs={"quick": None, "standard": 20, "full": None},
