@@ -41,8 +41,9 @@ def run(config: Config) -> Output:
     start = time.perf_counter()
     tables = rb.run(cfg, progress=config.progress)
     meta = run_metadata(command="spq bench robot", robot=config.robot, seed=config.seed, configurations=config.configs,
-                        trajectory_steps=config.steps, prune_m=config.prune, repeats=config.repeats, passes=config.passes,
-                        stp_r=config.r, stp_R=config.R, spq_tol_abs=DEFAULT_TOL_ABS, spq_tol_rel=DEFAULT_TOL_REL,
+                        trajectory_steps=config.steps, prune_m=config.prune, repeats=config.repeats,
+                        passes=config.passes, stp_r=config.r, stp_R=config.R, spq_tol_abs=DEFAULT_TOL_ABS,
+                        spq_tol_rel=DEFAULT_TOL_REL,
                         engine_configurations=config.engine_configs or config.configs,
                         seconds=round(time.perf_counter() - start, 1),
                         **({"workers": config.workers} if config.workers > 1 else {}))
@@ -55,9 +56,9 @@ def run(config: Config) -> Output:
               where + f"Per configuration: {config.repeats} runs through all configurations in order, one compiled call "
               f"per block of {rb.TIMING_BLOCK}; each block's fastest run counts (the sum over blocks, divided by the "
               f"number of configurations); the table goes through all its rows {config.passes} times and each row "
-              "keeps its least time (a slow spell of the machine can outlast one row's runs); forward kinematics included; the results go into one array allocated "
-              "beforehand, as a control loop "
-              "would keep. cold: every pair starts cold; coherent: per-pair warm starts along the "
+              "keeps its least time (a slow spell of the machine can outlast one row's runs); forward kinematics "
+              "included; the results go into one array allocated beforehand, as a control loop would keep. cold: "
+              "every pair starts cold; coherent: per-pair warm starts along the "
               f"trajectory. pruning_m > 0: pairs whose bounding spheres are farther apart are skipped."
               + (f" cold {config.workers} workers: the cold runs with each call's configurations split over "
                  f"{config.workers} threads (spq.workers), results equal one thread's bit for bit."
