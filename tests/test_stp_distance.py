@@ -57,6 +57,12 @@ def test_the_lower_bound_never_exceeds_the_distance(link4):
             assert apart.sum() > 1000
             assert (r.lower_bound[apart] <= r.distance[apart]).all(), (signed, np.max(r.lower_bound - r.distance))
             assert (r.distance[apart] == r.upper_bound[apart]).all()
+        # against an independent bracket of the true distance (the plain descent on the shapes' own
+        # supports, no hulls or patches): spq's bounds must hold it, to its rounding
+        for i in np.flatnonzero(apart)[::40]:
+            st, upper, lower = plain_descent(a, b, pa[i], pb[i])
+            assert st == gjk.SEPARATED
+            assert r.lower_bound[i] <= upper + 1e-15 and lower <= r.upper_bound[i] + 1e-15, (i, r.lower_bound[i], upper)
     pair = spq.Pair(stp, link4)
     for i in range(0, 5000, 7):
         q = pair.distance(pa[i], pb[i])
