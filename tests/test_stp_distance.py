@@ -57,8 +57,10 @@ def test_the_lower_bound_never_exceeds_the_distance(link4):
             assert apart.sum() > 1000
             assert (r.lower_bound[apart] <= r.distance[apart]).all(), (signed, np.max(r.lower_bound - r.distance))
             assert (r.distance[apart] == r.upper_bound[apart]).all()
-        # against an independent bracket of the true distance (the plain descent on the shapes' own
-        # supports, no hulls or patches): spq's bounds must hold it, to its rounding
+        # against the plain descent's bracket (spq's own supports and descent, but none of the hulls'
+        # search or the patch settles that make the bounds): spq's bounds must hold it, to its rounding;
+        # test_stp_bounds_hold_the_brute_force_bracket_along_their_normal checks against supports of
+        # its own
         for i in np.flatnonzero(apart)[::40]:
             st, upper, lower = plain_descent(a, b, pa[i], pb[i])
             assert st == gjk.SEPARATED
@@ -158,6 +160,43 @@ def test_torus_ball_against_a_segment_is_the_brute_force_nearest(link4):
             assert -1e-12 <= np.dot(y - s, t - s) <= np.dot(t - s, t - s) + 1e-12  # ... and between s and t
             # x runs from the circle point farthest from y to y
             assert abs(np.linalg.norm(x) - np.linalg.norm(y - circle, axis=1).max()) <= 1e-6
+
+
+def test_stp_bounds_hold_the_brute_force_bracket_along_their_normal():
+    """Along any unit n, the brute-force supports s_A(n) and s_B(-n) (points of the bodies, computed
+    without spq's kernels) bracket the true distance: slab (s_B - s_A).n <= d <= |s_B - s_A|. spq's
+    certified bounds must hold that bracket along its own normal, signed and unsigned, either order."""
+    from harness.references.stp_oracle import BruteForceSTP
+
+    rng = np.random.default_rng(7)
+    pts_a = rng.normal(size=(40, 3)) * [0.08, 0.05, 0.04]  # link-sized clouds
+    pts_b = rng.normal(size=(40, 3)) * [0.06, 0.06, 0.03]
+    stp_a, oracle_a = STPBV.from_points(pts_a, 0.005, 2.0), BruteForceSTP(pts_a, 0.005, 2.0)
+    bodies_b = {"STP": (STPBV.from_points(pts_b, 0.005, 2.0), BruteForceSTP(pts_b, 0.005, 2.0).support_many),
+                "PCH": (spq.Polyhedron.from_points(pts_b), lambda v: pts_b[np.argmax(v @ pts_b.T, axis=1)])}
+    pa, pb = random_poses(200, seed=11, translation_range=0.2)
+
+    def local(poses, v):  # world directions into each pose's frame
+        return np.einsum("nji,nj->ni", poses[:, :3, :3], v)
+
+    def world(poses, x):
+        return np.einsum("nij,nj->ni", poses[:, :3, :3], x) + poses[:, :3, 3]
+
+    for b, support_b in bodies_b.values():
+        for a_first in (True, False):
+            for signed in (False, True):
+                r = (spq.distances(stp_a, b, pa, pb, signed=signed) if a_first
+                     else spq.distances(b, stp_a, pb, pa, signed=signed))
+                apart = np.flatnonzero(r.status == "separated")
+                assert len(apart) > 100
+                n = r.normal[apart] if a_first else -r.normal[apart]  # from the STP-BV A to B
+                qa, qb = pa[apart], pb[apart]
+                s_a = world(qa, oracle_a.support_many(local(qa, n)))
+                s_b = world(qb, support_b(local(qb, -n)))
+                upper = np.linalg.norm(s_b - s_a, axis=1)
+                slab = np.einsum("ni,ni->n", s_b - s_a, n)
+                assert (r.lower_bound[apart] <= upper + 1e-14).all(), np.max(r.lower_bound[apart] - upper)
+                assert (r.upper_bound[apart] >= slab - 1e-14).all(), np.max(slab - r.upper_bound[apart])
 
 
 def test_an_stp_bv_above_a_slab_is_the_plane_less_its_brute_force_support():
