@@ -123,24 +123,32 @@ def _to_world(TA, out):
         out[OUT_NORMAL + r] = TA[r, 0] * x + TA[r, 1] * y + TA[r, 2] * z
 
 
-# A Pair's state for query_one in one array, float64 slots: [floats (FLOATS_SIZE), R (9), t (3),
+# A Pair's state for query_one in one array, float64 slots: [R (9), t (3), floats (FLOATS_SIZE),
 # ints (INTS_SIZE, read as int64)]; each shape comes as its packed array (kinds.pack_shape). Each
 # array numba unboxes costs time per call (about 10 ns without NRT, 30 ns with it, on the 2-core
-# test machine): three instead of eight.
-PAIR_R = FLOATS_SIZE
+# test machine): three instead of eight. R comes first, so that a C caller's pointer to the state
+# is R's too (spq.kernels.query_cfunc takes it as a 3x3 carray: numba's reshape is a call into its
+# helper library, about 2% of a plain call).
+PAIR_R = 0
 PAIR_T = PAIR_R + 9
-PAIR_INTS = PAIR_T + 3
+PAIR_FLOATS = PAIR_T + 3
+PAIR_INTS = PAIR_FLOATS + FLOATS_SIZE
 PAIR_SIZE = PAIR_INTS + INTS_SIZE
 
 
 def pair_state(floats, ints) -> np.ndarray:
     """A pair's state for :func:`query_one`, laid out as PAIR_* says. The caller keeps
-    ``state[:FLOATS_SIZE]`` as its floats and ``pair_ints(state)`` as its ints, so that both entry
+    ``pair_floats(state)`` as its floats and ``pair_ints(state)`` as its ints, so that both entry
     points share the warm start."""
     state = np.zeros(PAIR_SIZE)
-    state[:FLOATS_SIZE] = floats
+    pair_floats(state)[:] = floats
     pair_ints(state)[:] = ints
     return state
+
+
+def pair_floats(state):
+    """The floats of a pair_state (a view)."""
+    return state[PAIR_FLOATS:PAIR_INTS]
 
 
 def pair_ints(state):
@@ -170,6 +178,15 @@ def query_one(state, packed_a, packed_b, TA, TB, coherent, out, wbuf):
     Returns out[OUT_DISTANCE], so that the caller's result holds the distance without reading it
     back from out (a numpy element read costs about 80 ns of a 2 us call); NaN when a pose is
     rejected, nothing computed, and out[OUT_STATUS] = -(its POSE_* code, +10 for TB)."""
+    return query_shaped(state, state[PAIR_R:PAIR_T].reshape((3, 3)), packed_a, packed_b, TA, TB, coherent, out, wbuf,
+                        wbuf[:WORK_ROWS * 4].reshape((WORK_ROWS, 4)))
+
+
+@kernel
+def query_shaped(state, R, packed_a, packed_b, TA, TB, coherent, out, wbuf, work):
+    """:func:`query_one` with its 2-D views made by the caller: R, the state's rotation slots as
+    (3, 3), and work, wbuf's first WORK_ROWS * 4 slots as (WORK_ROWS, 4) (a C caller makes both as
+    carrays of the same pointers, without numba's reshape)."""
     code = POSE_OK
     if not _c_4x4(TA):
         code = POSE_LAYOUT
@@ -186,10 +203,9 @@ def query_one(state, packed_a, packed_b, TA, TB, coherent, out, wbuf):
         return math.nan
     fA, iA = unpack_shape(packed_a)
     fB, iB = unpack_shape(packed_b)
-    scratch = (state[PAIR_R:PAIR_T].reshape((3, 3)), state[PAIR_T:PAIR_INTS],
-               wbuf[:WORK_ROWS * 4].reshape((WORK_ROWS, 4)), wbuf[WORK_ROWS * 4:].view(np.int64))
-    posed_query(fA, iA, fB, iB, state[PAIR_INTS:PAIR_SIZE].view(np.int64), state[:FLOATS_SIZE], TA, TB, coherent,
-                scratch, out)
+    scratch = (R, state[PAIR_T:PAIR_FLOATS], work, wbuf[WORK_ROWS * 4:].view(np.int64))
+    posed_query(fA, iA, fB, iB, state[PAIR_INTS:PAIR_SIZE].view(np.int64), state[PAIR_FLOATS:PAIR_INTS], TA, TB,
+                coherent, scratch, out)
     return out[OUT_DISTANCE]
 
 

@@ -9,7 +9,7 @@ cache after the first time.
 
 from numba import carray, cfunc, config, types
 
-from spq.kernels.batch import query_one
+from spq.kernels.batch import PAIR_R, WORK_ROWS, query_shaped
 from spq.kernels.gjk import OUT_SIZE
 
 _F64P = types.CPointer(types.float64)
@@ -19,9 +19,15 @@ SIGNATURE = types.float64(_F64P, types.int64, _F64P, types.int64, _F64P, types.i
 
 @cfunc(SIGNATURE, cache=True, error_model="numpy")
 def query_c(state, n_state, packed_a, n_a, packed_b, n_b, pose_a, pose_b, coherent, out, work, n_work):
-    """kb.query_one on the arrays at these addresses; coherent is 0 or 1."""
-    return query_one(carray(state, n_state), carray(packed_a, n_a), carray(packed_b, n_b), carray(pose_a, (4, 4)),
-                     carray(pose_b, (4, 4)), coherent != 0, carray(out, OUT_SIZE), carray(work, n_work))
+    """kb.query_one on the arrays at these addresses; coherent is 0 or 1. Its 2-D views are carrays of
+    the same pointers (the state begins with R: PAIR_R is 0), not numba's reshape, a call."""
+    return query_shaped(carray(state, n_state), carray(state, (3, 3)), carray(packed_a, n_a), carray(packed_b, n_b),
+                        carray(pose_a, (4, 4)), carray(pose_b, (4, 4)), coherent != 0, carray(out, OUT_SIZE),
+                        carray(work, n_work), carray(work, (WORK_ROWS, 4)))
+
+
+if PAIR_R != 0:  # query_c's R is the state's first nine slots
+    raise ImportError("spq.kernels.batch.PAIR_R must be 0 for query_cfunc")
 
 
 ADDRESS = None if config.DISABLE_JIT else query_c.address  # no machine code without the compiler
