@@ -821,21 +821,38 @@ def _exact_deepest(pair, i, lower, warm, work):
 
 @kernel
 def _face_distance(work, iw, f):
-    """Distance from the origin to face f's triangle, its nearest point's weights left in row
-    EPA_NEAR + 3 (corners 0, 1, 2)."""
+    """Distance from the origin to a point of face f's triangle, nearest up to rounding: an upper
+    bound on the distance to D, whose weights (corners 0, 1, 2, summing to 1) are left in row
+    EPA_NEAR + 3.
+
+    The norm of the weights' point, not closest_on_triangle's squared distance: that comes from
+    the triangle's plane, whose normal a sliver's cross product (two corners 1e-6 apart on a curved
+    body, the third a metre away) turns by 1e-10 rad, so it fell below the distance to D (8.5e-13 m
+    under it, fuzz seed 85). The weights' own rounding (their sum missed 1 by 3e-11 there) is taken
+    out by dividing by their sum; what is left moves the point along the triangle, which changes its
+    distance to second order only."""
     W = work[EPA_ROW + EPA_NEAR:EPA_ROW + EPA_NEAR + 3]
     for k in range(3):
         v = _row(_corner(iw, f, k))
         for c in range(3):
             W[k, c] = work[v, c]
-    mask, d2 = closest_on_triangle(W, 0, 1, 2, work[EPA_ROW + EPA_NEAR + 3], work[EPA_ROW + EPA_NEAR + 4])
+    lam = work[EPA_ROW + EPA_NEAR + 3]
+    closest_on_triangle(W, 0, 1, 2, lam, work[EPA_ROW + EPA_NEAR + 4])
+    total = lam[0] + lam[1] + lam[2]
+    d2 = 0.0
+    for k in range(3):
+        lam[k] /= total
+    for c in range(3):
+        x = lam[0] * W[0, c] + lam[1] * W[1, c] + lam[2] * W[2, c]
+        d2 += x * x
     return math.sqrt(d2)
 
 
 @kernel
 def _near_witness(work, iw, f, size, out):
     """Witness points and normal of an origin outside P, nearest face f (weights from
-    _face_distance): the nearest point p = a - b of the face, normal -p / |p| (A to B), or the
+    _face_distance, summing to 1, so that the points lie in the bodies): the nearest point p = a - b
+    of the face, normal -p / |p| (A to B), or the
     face's outward normal where |p| is rounding noise of the polytope's size."""
     lam = work[EPA_ROW + EPA_NEAR + 3]
     for c in range(3):

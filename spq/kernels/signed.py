@@ -111,6 +111,18 @@ def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
 
 
 @kernel(inline="always")
+def _points_gap(k, lam, PA, PB, out):
+    """|p_B - p_A| of the descent's closest points (left in out): an upper bound on the distance where
+    |v| is not, as the weights of a sliver simplex miss a sum of 1 by rounding and scale v with them."""
+    _combine(PA, lam, k, out, OUT_POINT_A)
+    _combine(PB, lam, k, out, OUT_POINT_B)
+    g = 0.0
+    for c in range(3):
+        g += (out[OUT_POINT_B + c] - out[OUT_POINT_A + c]) ** 2
+    return math.sqrt(g)
+
+
+@kernel(inline="always")
 def _unit_or_x(d):
     """d (3,) as a unit vector, (1, 0, 0) if it is zero: the normal of last resort."""
     dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
@@ -144,7 +156,7 @@ def signed_finish(pair, tol, status, k, vv, lower, it,
     if status == OVERLAPPING or status == TOUCHING or (status == FAILED and k > 0):
         # a descent that stalled (a smooth body within about tol_abs of touching) hands its simplex
         # on too: the polytope settles the side of the boundary the origin is on
-        upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
+        upper0 = 0.0 if status == OVERLAPPING else _points_gap(k, lam, PA, PB, out)
         lower0 = lower if (status != OVERLAPPING and lower > 0.0) else -math.inf
         outcome, closed, upper, low, eit = epa(pair, tol, k, (work[0:4], PA, PB, work[20:22]), upper0, lower0, warm,
                                                work, iwork, out)
