@@ -11,15 +11,17 @@ first time, and a pose the kernel rejected (whose message Python writes). A NaN 
 kernel's own is a result, as in Python.
 
 Types:
-- Result: spq.DistanceResult's base, the result vector (OUT_SIZE doubles) in the object: the kernel
-  writes into it, so a call allocates one object, and its fields are read in C.
+- result_type(doc): spq.DistanceResult, made once by spq.query: the result vector (OUT_SIZE doubles)
+  in the object, which the kernel writes into, and its fields read in C. No Python subclass (which
+  would take part in the garbage collector) and no object pointers (the distance is a double), so a
+  call's result costs no collector bookkeeping, and freed results are kept for the next calls.
 - Entry(address, state, packed_a, packed_b): one pair's compiled query (a Pair's arrays).
 - PlainDistance(fallback, defaults): spq.distance. The last pair it asked on this thread is kept by
   remember(A, B, tol, rel_tol, max_iter, signed, entry), which the fallback calls, and a call whose
   shapes and options are the same objects (identity) reuses its Entry.
 - PairQuery(fallback, coherent): Pair.distance and Pair.cold_distance, a method (a descriptor);
   it reads the Pair's `_entry`.
-configure(result_type, layout, status_names, work) says which Result subclass the queries make,
+configure(result_type, layout, status_names, work) says which result type the queries make (result_type's),
 where each field lies in the result vector (spq.kernels.gjk's OUT_*; a NaN distance whose status
 is < 0 is a rejected pose), the status names, and kb.query_work's array, which the module keeps.
 */
@@ -120,27 +122,35 @@ static PyTypeObject EntryType = {
 /* ---------------------------------------------------------------- Result */
 
 #define RESULT_CAPACITY 16 /* doubles: the result vector, OUT_SIZE of them, lives in the object */
+#define RESULT_FREE 16     /* freed results kept for the next calls (a loop holds one or two at a time) */
 
 typedef struct {
     PyObject_HEAD
-    PyObject *distance; /* a member (a slot's fast read), the queries' float */
+    double distance; /* a member (a slot's fast read): the float is made when it is read */
     double out[RESULT_CAPACITY];
 } ResultObject;
 
+static PyTypeObject *made_type = NULL; /* result_type()'s */
+static ResultObject *free_results[RESULT_FREE];
+static int free_count = 0;
+
 static void result_dealloc(ResultObject *self) {
-    PyObject_GC_UnTrack(self);
-    Py_XDECREF(self->distance);
-    Py_TYPE(self)->tp_free((PyObject *)self);
+    PyTypeObject *type = Py_TYPE(self);
+    if (free_count < RESULT_FREE)
+        free_results[free_count++] = self; /* its memory, for new_result's PyObject_Init */
+    else
+        type->tp_free((PyObject *)self);
+    Py_DECREF(type); /* an instance of a heap type holds a reference to it */
 }
 
-static int result_traverse(ResultObject *self, visitproc visit, void *arg) {
-    Py_VISIT(self->distance);
-    return 0;
-}
-
-static int result_clear(ResultObject *self) {
-    Py_CLEAR(self->distance);
-    return 0;
+/* a zeroed result of the configured type, a kept one if there is one */
+static ResultObject *new_result(void) {
+    if (free_count == 0) return (ResultObject *)result_type->tp_alloc(result_type, 0);
+    ResultObject *self = free_results[--free_count];
+    PyObject_Init((PyObject *)self, result_type); /* (a reference to the type, and one to the object) */
+    self->distance = 0.0;
+    memset(self->out, 0, sizeof(self->out));
+    return self;
 }
 
 /* a new 1-D float64 array holding n doubles from data */
@@ -212,23 +222,24 @@ static PyGetSetDef result_getset[] = {
 };
 
 static PyMemberDef result_members[] = {
-    {"distance", T_OBJECT_EX, offsetof(ResultObject, distance), 0, PyDoc_STR("the distance (m), a float")},
+    {"distance", T_DOUBLE, offsetof(ResultObject, distance), 0, PyDoc_STR("the distance (m), a float")},
     {NULL, 0, 0, 0, NULL},
 };
 
-static PyTypeObject ResultType = {
-    PyVarObject_HEAD_INIT(NULL, 0)
-    .tp_name = "spq._entry.Result",
-    .tp_doc = PyDoc_STR("One query's result, its vector held in the object (spq.DistanceResult's base)"),
-    .tp_basicsize = sizeof(ResultObject),
-    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE | Py_TPFLAGS_HAVE_GC,
-    .tp_new = PyType_GenericNew,
-    .tp_dealloc = (destructor)result_dealloc,
-    .tp_traverse = (traverseproc)result_traverse,
-    .tp_clear = (inquiry)result_clear,
-    .tp_getset = result_getset,
-    .tp_members = result_members,
-};
+/* result_type(doc): the results' type (spq.DistanceResult), with that docstring; Python adds its
+   __repr__ and __reduce__ */
+static PyObject *make_result_type(PyObject *module, PyObject *doc) {
+    const char *text = PyUnicode_AsUTF8(doc);
+    if (text == NULL) return NULL;
+    PyType_Slot slots[] = {
+        {Py_tp_dealloc, (void *)result_dealloc}, {Py_tp_getset, result_getset}, {Py_tp_members, result_members},
+        {Py_tp_new, (void *)PyType_GenericNew}, {Py_tp_doc, (void *)text}, {0, NULL},
+    };
+    PyType_Spec spec = {"spq.query.DistanceResult", sizeof(ResultObject), 0, Py_TPFLAGS_DEFAULT, slots};
+    PyObject *type = PyType_FromSpec(&spec);
+    if (type != NULL) Py_XSETREF(made_type, (PyTypeObject *)Py_NewRef(type));
+    return type;
+}
 
 /* ---------------------------------------------------------------- the query */
 
@@ -246,8 +257,8 @@ static inline int is_pose(PyObject *o) {
    (a pose this path does not take, or one the kernel rejected). The kernel writes into the result. */
 static PyObject *query(EntryObject *e, PyObject *pose_a, PyObject *pose_b, int coherent) {
     if (result_type == NULL || !is_pose(pose_a) || !is_pose(pose_b)) return NULL;
-    /* tp_alloc, not tp_new: DistanceResult has no __new__ of its own, and a zeroed object is a valid one */
-    ResultObject *result = (ResultObject *)result_type->tp_alloc(result_type, 0);
+    /* not tp_new: DistanceResult has no __new__ of its own, and a zeroed object is a valid one */
+    ResultObject *result = new_result();
     if (result == NULL) return NULL;
     double d = e->fn(e->data[0], e->size[0], e->data[1], e->size[1], e->data[2], e->size[2],
                      (double *)PyArray_DATA((PyArrayObject *)pose_a), (double *)PyArray_DATA((PyArrayObject *)pose_b),
@@ -256,10 +267,7 @@ static PyObject *query(EntryObject *e, PyObject *pose_a, PyObject *pose_b, int c
         Py_DECREF(result); /* a rejected pose, nothing computed: Python's path raises its error */
         return NULL;
     }
-    if ((result->distance = PyFloat_FromDouble(d)) == NULL) {
-        Py_DECREF(result);
-        return NULL;
-    }
+    result->distance = d;
     return (PyObject *)result;
 }
 
@@ -480,7 +488,7 @@ static PyObject *configure(PyObject *module, PyObject *args) {
                           &names, &work_array))
         return NULL;
     Py_ssize_t got[L_COUNT];
-    int ok = PyType_IsSubtype(type, &ResultType) && PyTuple_GET_SIZE(where) == L_COUNT && is_flat_f64(work_array, 1);
+    int ok = type == made_type && PyTuple_GET_SIZE(where) == L_COUNT && is_flat_f64(work_array, 1);
     for (Py_ssize_t i = 0; ok && i < L_COUNT; i++) {
         got[i] = PyLong_AsSsize_t(PyTuple_GET_ITEM(where, i));
         if (got[i] == -1 && PyErr_Occurred()) return NULL;
@@ -488,7 +496,7 @@ static PyObject *configure(PyObject *module, PyObject *args) {
         ok = i == L_SIZE ? got[i] >= 1 && got[i] <= RESULT_CAPACITY : got[i] >= 0 && got[i] + width <= got[L_SIZE];
     }
     if (!ok) {
-        PyErr_Format(PyExc_ValueError, "configure(result_type: a Result subclass, layout: (size <= %d, "
+        PyErr_Format(PyExc_ValueError, "configure(result_type: result_type()'s, layout: (size <= %d, "
                      "point_a, point_b, normal, lower, upper, iterations, status) within size, status_names, "
                      "work: a writeable, C-contiguous, aligned 1-D float64 array)", RESULT_CAPACITY);
         return NULL;
@@ -503,6 +511,8 @@ static PyObject *configure(PyObject *module, PyObject *args) {
 static PyMethodDef module_methods[] = {
     {"remember", remember, METH_O,
      PyDoc_STR("remember((A, B, tol, rel_tol, max_iter, signed, entry)): this thread's last plain distance() pair")},
+    {"result_type", make_result_type, METH_O,
+     PyDoc_STR("result_type(doc): the results' type, spq.DistanceResult (made once)")},
     {"configure", configure, METH_VARARGS,
      PyDoc_STR("configure(result_type, layout, status_names, work): the results' type and layout, and the work array")},
     {NULL, NULL, 0, NULL},
@@ -516,7 +526,7 @@ static struct PyModuleDef module_def = {
 
 PyMODINIT_FUNC PyInit__entry(void) {
     import_array();
-    if (PyType_Ready(&ResultType) < 0 || PyType_Ready(&EntryType) < 0 || PyType_Ready(&PlainType) < 0 || PyType_Ready(&PairQueryType) < 0)
+    if (PyType_Ready(&EntryType) < 0 || PyType_Ready(&PlainType) < 0 || PyType_Ready(&PairQueryType) < 0)
         return NULL;
     last_key = PyUnicode_InternFromString("spq._entry.last");
     entry_attr = PyUnicode_InternFromString("_entry");
@@ -526,7 +536,6 @@ PyMODINIT_FUNC PyInit__entry(void) {
     PyObject *m = PyModule_Create(&module_def);
     if (m == NULL) return NULL;
     if (PyModule_AddObjectRef(m, "Entry", (PyObject *)&EntryType) < 0 ||
-        PyModule_AddObjectRef(m, "Result", (PyObject *)&ResultType) < 0 ||
         PyModule_AddObjectRef(m, "PlainDistance", (PyObject *)&PlainType) < 0 ||
         PyModule_AddObjectRef(m, "PairQuery", (PyObject *)&PairQueryType) < 0) {
         Py_DECREF(m);

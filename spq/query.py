@@ -63,7 +63,7 @@ _POSE_PROBLEM = {
 
 
 class _ResultFields:
-    """DistanceResult's fields, read from its result array (spq._entry.Result has them in C)."""
+    """DistanceResult's fields, read from its result array (spq._entry.result_type's has them in C)."""
 
     # no __init__: a class with one of its own costs about 30 ns more to make, and object.__new__ 25 ns
     # more, of a 2 us call; the queries fill both slots (_result)
@@ -78,8 +78,7 @@ class _ResultFields:
     upper_bound = property(lambda self: float(self._out[OUT_UPPER]))
 
 
-class DistanceResult(_entry.Result if _entry is not None else _ResultFields):
-    """Result of one query (world frame, metres).
+_RESULT_DOC = """Result of one query (world frame, metres).
 
     distance: >= 0, 0 when overlapping; with ``signed=True``, -depth when overlapping (a float
     attribute, the others are read from the result vector on demand).
@@ -90,19 +89,34 @@ class DistanceResult(_entry.Result if _entry is not None else _ResultFields):
     distance (the signed distance when signed); distance == upper_bound.
 
     With spq's C extension (spq._entry) the result vector lives in the object and the fields are
-    read in C (a vector field in about 80 ns instead of 300); without it, in the Python above.
-    Either way ``_out`` is the result vector (OUT_SIZE floats), set by the queries.
+    read in C (a vector field in about 80 ns instead of 300), and the type is made there
+    (``_entry.result_type``); without it, the Python class below. Either way ``_out`` is the result
+    vector (OUT_SIZE floats), set by the queries.
     """
 
-    __slots__ = ()
 
-    def __repr__(self) -> str:
-        return (f"DistanceResult(distance={self.distance:.12g}, status={self.status!r}, "
-                f"iterations={self.iterations}, lower_bound={self.lower_bound:.12g}, "
-                f"upper_bound={self.upper_bound:.12g})")
+def _result_repr(self) -> str:
+    return (f"DistanceResult(distance={self.distance:.12g}, status={self.status!r}, "
+            f"iterations={self.iterations}, lower_bound={self.lower_bound:.12g}, "
+            f"upper_bound={self.upper_bound:.12g})")
 
-    def __reduce__(self):
-        return _result, (self._out,)
+
+def _result_reduce(self):
+    return _result, (self._out,)
+
+
+if _entry is not None:
+    # made in C, not a Python subclass: a class statement's type takes part in the garbage collector,
+    # whose bookkeeping and the subclass's deallocation a plain call paid for its result
+    DistanceResult = _entry.result_type(_RESULT_DOC)
+    DistanceResult.__repr__ = _result_repr
+    DistanceResult.__reduce__ = _result_reduce
+else:
+    class DistanceResult(_ResultFields):
+        __doc__ = _RESULT_DOC
+        __slots__ = ()
+        __repr__ = _result_repr
+        __reduce__ = _result_reduce
 
 
 def _result(out: np.ndarray) -> DistanceResult:

@@ -205,9 +205,10 @@ def test_entry_refuses_arrays_it_cannot_take():
 
 
 def test_the_results_fields_read_in_c_are_the_python_ones():
-    """spq._entry.Result holds the result vector and reads its fields in C; the Python fields
-    (spq.query._ResultFields, used without the extension) on the same vector give the same values
-    and types. Fields are copies, results pickle, and _out takes only a vector of its size."""
+    """spq.DistanceResult (made by spq._entry.result_type) holds the result vector and reads its fields
+    in C; the Python fields (spq.query._ResultFields, used without the extension) on the same vector
+    give the same values and types. Fields are copies, results pickle, and _out takes only a vector
+    of its size."""
     class PythonResult(sq._ResultFields):
         __slots__ = ()
 
