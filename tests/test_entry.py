@@ -166,6 +166,30 @@ def test_c_entries_hold_no_references_they_should_not():
     assert [sys.getrefcount(x) for x in watched] == before
 
 
+def test_freed_results_reused_by_later_calls_leave_held_results_as_they_were():
+    """spq._entry keeps up to 16 freed results for the next calls: a result still held is never one
+    of them, and a reused one carries nothing of its last query. Held results, with freed ones reused
+    in between (and rejected poses, which free theirs at once), match the Python path's answers on
+    their own poses field for field."""
+    a, b = hull(45), hull(46)
+    rng = np.random.default_rng(7)
+    poses = [random_pose(rng, 0.4) for _ in range(120)]
+    held, expected = [], []
+    for i, pb in enumerate(poses):
+        result = spq.distance(a, b, np.eye(4), pb, signed=i % 2 == 0)
+        if i % 3 == 0:  # every third kept, the others freed at once into the kept pool
+            held.append(result)
+            expected.append(PYTHON_PLAIN(a, b, np.eye(4), pb, signed=i % 2 == 0))
+        if i % 10 == 0:
+            with pytest.raises(ValueError):
+                spq.distance(a, b, np.eye(4), np.full((4, 4), np.nan))
+    assert len({id(r) for r in held}) == len(held)
+    for got, want in zip(held, expected):
+        assert got.distance == want.distance
+        np.testing.assert_array_equal(got._out, want._out)
+        assert (got.status, got.iterations) == (want.status, want.iterations)
+
+
 def test_c_entries_on_threads_answer_as_one_thread():
     """Four threads, each on its own pairs and poses at once (each thread has its own last pair; the
     work array is shared, as a query holds the GIL): every answer equals the same call's on the
