@@ -88,17 +88,25 @@ def unsigned_of_signed(out):
     return int(out[OUT_STATUS])
 
 
-@kernel
-def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
-    """The descent's closest points (k simplex points, weights lam) as a signed core result: distance
-    |p_B - p_A| (its upper bound), lower bound ``lower``, normal along p_B - p_A, or n where they
-    coincide. status FAILED is kept; otherwise it follows the distance."""
+@kernel(inline="always")
+def _points_gap(k, lam, PA, PB, out):
+    """The descent's closest points (k simplex points, weights lam) into out, and p_B - p_A with its
+    length: an upper bound on the distance where |v| is not, as the weights of a sliver simplex miss
+    a sum of 1 by rounding and scale v with them."""
     _combine(PA, lam, k, out, OUT_POINT_A)
     _combine(PB, lam, k, out, OUT_POINT_B)
     dx = out[OUT_POINT_B] - out[OUT_POINT_A]
     dy = out[OUT_POINT_B + 1] - out[OUT_POINT_A + 1]
     dz = out[OUT_POINT_B + 2] - out[OUT_POINT_A + 2]
-    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return dx, dy, dz, math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@kernel
+def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
+    """The descent's closest points (k simplex points, weights lam) as a signed core result: distance
+    |p_B - p_A| (its upper bound), lower bound ``lower``, normal along p_B - p_A, or n where they
+    coincide. status FAILED is kept; otherwise it follows the distance."""
+    dx, dy, dz, d = _points_gap(k, lam, PA, PB, out)
     if d > 0.0:
         out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = dx / d, dy / d, dz / d
     else:
@@ -108,18 +116,6 @@ def descent_result(status, k, lam, PA, PB, lower, it, tol_abs, n0, n1, n2, out):
     out[OUT_LOWER] = min(lower, d)
     out[OUT_ITERATIONS] = it
     out[OUT_STATUS] = FAILED if status == FAILED else status_of(d, tol_abs)
-
-
-@kernel(inline="always")
-def _points_gap(k, lam, PA, PB, out):
-    """|p_B - p_A| of the descent's closest points (left in out): an upper bound on the distance where
-    |v| is not, as the weights of a sliver simplex miss a sum of 1 by rounding and scale v with them."""
-    _combine(PA, lam, k, out, OUT_POINT_A)
-    _combine(PB, lam, k, out, OUT_POINT_B)
-    g = 0.0
-    for c in range(3):
-        g += (out[OUT_POINT_B + c] - out[OUT_POINT_A + c]) ** 2
-    return math.sqrt(g)
 
 
 @kernel(inline="always")
@@ -156,7 +152,7 @@ def signed_finish(pair, tol, status, k, vv, lower, it,
     if status == OVERLAPPING or status == TOUCHING or (status == FAILED and k > 0):
         # a descent that stalled (a smooth body within about tol_abs of touching) hands its simplex
         # on too: the polytope settles the side of the boundary the origin is on
-        upper0 = 0.0 if status == OVERLAPPING else _points_gap(k, lam, PA, PB, out)
+        upper0 = 0.0 if status == OVERLAPPING else _points_gap(k, lam, PA, PB, out)[3]
         lower0 = lower if (status != OVERLAPPING and lower > 0.0) else -math.inf
         outcome, closed, upper, low, eit = epa(pair, tol, k, (work[0:4], PA, PB, work[20:22]), upper0, lower0, warm,
                                                work, iwork, out)
