@@ -82,14 +82,24 @@ def cube_cell_centres(G: int) -> np.ndarray:
 CANDIDATE_MARGIN = 1e-12  # lead, relative to the largest vertex norm, by which a vertex must lose to be dropped
 CELL_GROWTH = 1e-7  # relative growth of each cell about its centre, so that cube_cell's rounding stays inside
 # A cell overlaps the normal cones of about 2 + 3 / (cells per vertex) vertices (measured on random
-# and robot hulls: 4.9 at one cell per vertex, 2.6 at six).
+# and robot hulls: 4.9 at one cell per vertex, 2.6 at six). That mean is not what a search sees: GJK's
+# and the EPA's directions end on the hull's facet normals, where nearly flat stretches put many
+# vertices in one cell (kuka_link_4 at 2 cells per vertex: 48% of the final normals' cells hold more
+# than CELL_SLOTS candidates, 7.9 on average; at 24, 17%). So a map gets up to DENSE_CELLS_PER_VERTEX
+# cells per vertex while its edge stays within DENSE_MAX_G (6 * 64^2 cells of 4 int32 slots, about
+# 400 KB), and never fewer than CELLS_PER_VERTEX (large hulls' short lists).
 CELLS_PER_VERTEX = 2.0
+DENSE_CELLS_PER_VERTEX = 24.0
+DENSE_MAX_G = 64
 
 
 def cube_map_size(n_vertices: int, minimum: int) -> int:
-    """Cells per cube face edge for a polytope of n_vertices: at least ``minimum``, and at least
-    CELLS_PER_VERTEX cells per vertex, so that large hulls keep short candidate lists."""
-    return max(minimum, int(np.ceil(np.sqrt(n_vertices * CELLS_PER_VERTEX / 6.0))))
+    """Cells per cube face edge for a polytope of n_vertices: at least ``minimum``; DENSE_CELLS_PER_VERTEX
+    cells per vertex up to an edge of DENSE_MAX_G; and at least CELLS_PER_VERTEX cells per vertex, so
+    that large hulls keep short candidate lists."""
+    def edge(cells_per_vertex):
+        return int(np.ceil(np.sqrt(n_vertices * cells_per_vertex / 6.0)))
+    return max(minimum, min(DENSE_MAX_G, edge(DENSE_CELLS_PER_VERTEX)), edge(CELLS_PER_VERTEX))
 
 
 def cell_candidates(vertices: np.ndarray, G: int, adjacency=None) -> tuple[np.ndarray, np.ndarray]:
