@@ -117,14 +117,22 @@ class Polyhedron(Shape):
         return cls.from_points(points[used])
 
     # --- kernel view --------------------------------------------------------------------------
-    def kernel_data(self) -> KernelData:
+    def kernel_data(self, dense: bool = True) -> KernelData:
+        """What the kernels see of this hull; dense: the denser cube map (see cube_map), which a robot
+        scene's pools leave out."""
         if self._kernel is None:
-            n = len(self.vertices)
-            G = cube_map_size(n, kinds.CUBE_MAP_CELLS)
-            graph = (self.adjacency_offsets, self.adjacency) if self._hull_triangles else None
-            idata = cube_map_idata(n, G, *cell_candidates(self.vertices, G, graph)).astype(kinds.IDATA_DTYPE)
-            self._kernel = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), idata)
-        return self._kernel
+            self._kernel = {}
+        if dense not in self._kernel:
+            self._kernel[dense] = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), self.cube_map(dense))
+        return self._kernel[dense]
+
+    def cube_map(self, dense: bool = True) -> np.ndarray:
+        """The support's cube map as the kernels read it (POLYTOPE idata, layout in spq.kernels.kinds);
+        dense: cube_map_size's denser cells (a standalone hull), else the sparse ones (an STP-BV's)."""
+        n = len(self.vertices)
+        G = cube_map_size(n, kinds.CUBE_MAP_CELLS, dense)
+        graph = (self.adjacency_offsets, self.adjacency) if self._hull_triangles else None
+        return cube_map_idata(n, G, *cell_candidates(self.vertices, G, graph)).astype(kinds.IDATA_DTYPE)
 
     def bounding_radius(self) -> float:
         return float(np.sqrt((self.vertices**2).sum(axis=1).max()))
