@@ -316,7 +316,7 @@ class STPBV(Shape):
             table = self._hull_vertex_table()
             fdata = np.concatenate([[self.r, self.R, topo.rho], topo.vertices.ravel(), topo.face_centres.ravel(),
                                     tori.ravel(), planes.ravel(), table.ravel(), hull_f.ravel()])
-            hull_i = self.hull.cube_map(dense=False) if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
+            hull_i = self.hull.kernel_data(dense=False).idata if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
             o_po = ks.HEADER_SIZE
             o_rec = o_po + len(self.patch_offsets)
             o_map = o_rec + 2 * len(self.records)
