@@ -427,7 +427,7 @@ class Scene:
                     slot_of[(bi, bv)] = len(keys)
                     keys.append((bi, bv))
         shapes = [self._volume(self.bodies[bi], bv) for bi, bv in keys]
-        # the hulls' sparse cube maps: the all-pairs sweep's working set stays small (Polyhedron.cube_map)
+        # the hulls' sparse cube maps: the all-pairs sweep's working set stays small (Polyhedron.kernel_data)
         data = [shape.kernel_data(dense=False) if isinstance(shape, Polyhedron) else shape.kernel_data()
                 for shape, _ in shapes]
         fparts, iparts = [], []

@@ -96,9 +96,10 @@ DENSE_MAX_G = 64
 def cube_map_size(n_vertices: int, minimum: int, dense: bool = True) -> int:
     """Cells per cube face edge for a polytope of n_vertices: at least ``minimum``; if ``dense``,
     DENSE_CELLS_PER_VERTEX cells per vertex up to an edge of DENSE_MAX_G; and at least CELLS_PER_VERTEX
-    cells per vertex, so that large hulls keep short candidate lists. An STP-BV's embedded hull takes
-    the sparse map: its search only starts the curved one, and in a robot scene's all-pairs sweep the
-    larger pools cost more in cache than the shorter lists saved (JVRC-1 cold auto 7% slower)."""
+    cells per vertex, so that large hulls keep short candidate lists. A robot scene takes the sparse
+    maps (dense=False): its all-pairs sweep runs through every hull, and the larger pools cost more in
+    cache than the shorter lists saved (JVRC-1 cold auto 7% slower). The hulls embedded in an STP-BV or
+    a superellipsoid take them too, as a scene shares an STP-BV's hull with the body's PCH."""
     def edge(cells_per_vertex):
         return int(np.ceil(np.sqrt(n_vertices * cells_per_vertex / 6.0)))
     dense_edge = min(DENSE_MAX_G, edge(DENSE_CELLS_PER_VERTEX)) if dense else 0

@@ -118,21 +118,18 @@ class Polyhedron(Shape):
 
     # --- kernel view --------------------------------------------------------------------------
     def kernel_data(self, dense: bool = True) -> KernelData:
-        """What the kernels see of this hull; dense: the denser cube map (see cube_map), which a robot
-        scene's pools leave out."""
+        """What the kernels see of this hull. dense: the support's cube map with cube_map_size's denser
+        cells (a standalone hull); False: the sparse one, which a robot scene's pools and the hulls
+        embedded in an STP-BV or a superellipsoid take (spq.kernels.support.cube_map_size)."""
         if self._kernel is None:
             self._kernel = {}
         if dense not in self._kernel:
-            self._kernel[dense] = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), self.cube_map(dense))
+            n = len(self.vertices)
+            G = cube_map_size(n, kinds.CUBE_MAP_CELLS, dense)
+            graph = (self.adjacency_offsets, self.adjacency) if self._hull_triangles else None
+            idata = cube_map_idata(n, G, *cell_candidates(self.vertices, G, graph)).astype(kinds.IDATA_DTYPE)
+            self._kernel[dense] = KernelData(kinds.POLYTOPE, 0.0, self.vertices.ravel().copy(), idata)
         return self._kernel[dense]
-
-    def cube_map(self, dense: bool = True) -> np.ndarray:
-        """The support's cube map as the kernels read it (POLYTOPE idata, layout in spq.kernels.kinds);
-        dense: cube_map_size's denser cells (a standalone hull), else the sparse ones (an STP-BV's)."""
-        n = len(self.vertices)
-        G = cube_map_size(n, kinds.CUBE_MAP_CELLS, dense)
-        graph = (self.adjacency_offsets, self.adjacency) if self._hull_triangles else None
-        return cube_map_idata(n, G, *cell_candidates(self.vertices, G, graph)).astype(kinds.IDATA_DTYPE)
 
     def bounding_radius(self) -> float:
         return float(np.sqrt((self.vertices**2).sum(axis=1).max()))

@@ -92,7 +92,7 @@ class Superellipsoid(Shape):
         """fdata: the closed-form parameters, then the inner polytope's vertices; idata: the inner
         polytope's (see kernels.kinds)."""
         if self._kernel is None:
-            inner = self.inner_polytope().kernel_data(dense=False)  # an embedded map stays sparse (Polyhedron.cube_map)
+            inner = self.inner_polytope().kernel_data(dense=False)  # an embedded map stays sparse (Polyhedron.kernel_data)
             fdata = np.concatenate([self._core, inner.fdata])
             self._kernel = KernelData(kinds.SUPERELLIPSOID, 0.0, fdata, inner.idata)
         return self._kernel
