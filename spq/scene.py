@@ -428,7 +428,7 @@ class Scene:
                     keys.append((bi, bv))
         shapes = [self._volume(self.bodies[bi], bv) for bi, bv in keys]
         # the hulls' sparse cube maps: the all-pairs sweep's working set stays small (Polyhedron.kernel_data)
-        data = [shape.kernel_data(dense=False) if isinstance(shape, Polyhedron) else shape.kernel_data()
+        data = [shape.kernel_data(dense=False) if isinstance(shape, (Polyhedron, STPBV)) else shape.kernel_data()
                 for shape, _ in shapes]
         fparts, iparts = [], []
         frange, irange = [None] * len(keys), [None] * len(keys)

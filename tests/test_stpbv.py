@@ -149,8 +149,9 @@ def test_built_support_matches_the_brute_force_over_q(seed, R):
     np.testing.assert_allclose(stp.support(d), brute_force_support_many(sub, 0.004, R, d), rtol=0, atol=1e-9)
 
 
+@pytest.mark.parametrize("dense", [True, False])
 @pytest.mark.parametrize("seed, R", [(0, 0.15), (2, 3.0)])
-def test_the_core_support_is_the_brute_force_support_less_r_along_the_unit_direction(seed, R):
+def test_the_core_support_is_the_brute_force_support_less_r_along_the_unit_direction(seed, R, dense):
     """The signed query's EPA continues on STP_CORE, the ball hull at R - r that the STP-BV grows by r:
     its support must be the STP-BV's (brute force over Q) less r u, at any direction's length."""
     from datasets import load_object
@@ -161,7 +162,7 @@ def test_the_core_support_is_the_brute_force_support_less_r_along_the_unit_direc
     sub = pts[np.random.default_rng(seed).choice(len(pts), 40, replace=False)]
     r = 0.004
     stp = STPBV.from_points(sub, r, R)
-    kd = stp.kernel_data()
+    kd = stp.kernel_data(dense)  # a standalone STP-BV's embedded cube map, or a scene's sparse one
     d = directions(400, seed) * np.random.default_rng(seed + 3).uniform(0.01, 100.0, (400, 1))
     core = support_many(STP_CORE, kd.fdata, kd.idata, d)
     np.testing.assert_allclose(core, brute_force_support_many(sub, r, R, d) - r * unit(d), rtol=0, atol=1e-9)

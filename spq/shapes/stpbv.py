@@ -303,11 +303,16 @@ class STPBV(Shape):
         if name not in ks.METHOD_NAMES:
             raise ValueError(f"unknown support method {name!r}; choose one of {ks.METHOD_NAMES}")
         self._method = name
-        if self._kernel is not None:
-            self._kernel.idata[ks.IDX_METHOD] = ks.METHOD_NAMES.index(name)
+        for kd in (self._kernel or {}).values():
+            kd.idata[ks.IDX_METHOD] = ks.METHOD_NAMES.index(name)
 
-    def kernel_data(self) -> KernelData:
+    def kernel_data(self, dense: bool = True) -> KernelData:
+        """What the kernels see of this STP-BV. dense: its embedded hull's support cube map at the
+        denser size (a standalone STP-BV); False: the sparse one, which a robot scene's pools take
+        (Polyhedron.kernel_data says why)."""
         if self._kernel is None:
+            self._kernel = {}
+        if dense not in self._kernel:
             topo = self.topology
             tori = np.hstack([self.torus_centres, self.torus_axes, self.torus_radii[:, None]])
             b = self.records[:, 0]
@@ -316,7 +321,7 @@ class STPBV(Shape):
             table = self._hull_vertex_table()
             fdata = np.concatenate([[self.r, self.R, topo.rho], topo.vertices.ravel(), topo.face_centres.ravel(),
                                     tori.ravel(), planes.ravel(), table.ravel(), hull_f.ravel()])
-            hull_i = self.hull.kernel_data(dense=False).idata if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
+            hull_i = self.hull.kernel_data(dense).idata if self.hull is not None else np.zeros(0, dtype=kinds.IDATA_DTYPE)
             o_po = ks.HEADER_SIZE
             o_rec = o_po + len(self.patch_offsets)
             o_map = o_rec + 2 * len(self.records)
@@ -326,9 +331,9 @@ class STPBV(Shape):
                       table.shape[1] if table.size else 0]
             # the hull last in both arrays: a scene may then store it once for this body's PCH and STP-BV
             idata = np.concatenate([header, self.patch_offsets, self.records[:, 1:].ravel(), self.hull_to_small, hull_i])
-            self._kernel = KernelData(kinds.STP, 0.0, np.ascontiguousarray(fdata, dtype=np.float64),
+            self._kernel[dense] = KernelData(kinds.STP, 0.0, np.ascontiguousarray(fdata, dtype=np.float64),
                                       np.ascontiguousarray(idata, dtype=kinds.IDATA_DTYPE))
-        return self._kernel
+        return self._kernel[dense]
 
     def _hull_vertex_table(self) -> np.ndarray:
         """(H, S, TABLE_RECORD): each hull vertex's small-sphere records as (side * axis, side * cos,
