@@ -279,7 +279,7 @@ def test_jvrc1_auto_stores_shared_hulls_once_and_each_pair_matches_a_lone_query(
     """A body whose STP-BV's underlying hull is its PCH keeps one copy (the packing check reads every
     slot's data back); the scene's pair distances equal lone spq.distance queries of the same shapes."""
     slots = {(i, bv) for pair, kinds in zip(jvrc1_auto.pairs, jvrc1_auto.pair_kinds) for i, bv in zip(pair, kinds)}
-    # the scene's pools take the sparse cube maps (Scene's packing), so its own copies are counted so
+    # the scene's pools hold the sparse cube maps (Scene's packing): count those
     own = sum(len(Scene._volume(jvrc1_auto.bodies[i], bv)[0].kernel_data(dense=False).idata) for i, bv in slots)
     assert len(jvrc1_auto._ipool) < own - 10_000  # some hulls are stored once
     q = jvrc1_configurations[0]
