@@ -427,9 +427,8 @@ class Scene:
                     slot_of[(bi, bv)] = len(keys)
                     keys.append((bi, bv))
         shapes = [self._volume(self.bodies[bi], bv) for bi, bv in keys]
-        # the hulls' sparse cube maps: the all-pairs sweep's working set stays small (Polyhedron.kernel_data)
-        data = [shape.kernel_data(dense=False) if isinstance(shape, (Polyhedron, STPBV)) else shape.kernel_data()
-                for shape, _ in shapes]
+        # the sparse cube maps: the all-pairs sweep's working set stays small (support.cube_map_size)
+        data = [shape.kernel_data(dense=False) for shape, _ in shapes]
         fparts, iparts = [], []
         frange, irange = [None] * len(keys), [None] * len(keys)
         size = [0, 0]

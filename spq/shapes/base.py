@@ -31,7 +31,11 @@ class Shape:
     """Base class of convex shapes. A shape is data in its own local frame (metres); the solver
     sees only its :class:`KernelData`."""
 
-    def kernel_data(self) -> KernelData:  # pragma: no cover - abstract
+    def kernel_data(self, dense: bool = True) -> KernelData:  # pragma: no cover - abstract
+        """What the kernels see of this shape. dense: a shape with a support cube map (a hull, or an
+        STP-BV's embedded hull) gives its denser one, for a standalone query; False the sparse one,
+        which a robot scene's pools take (spq.kernels.support.cube_map_size says why). Shapes
+        without one ignore it."""
         raise NotImplementedError
 
     def bounding_radius(self) -> float:

@@ -119,8 +119,9 @@ class Polyhedron(Shape):
     # --- kernel view --------------------------------------------------------------------------
     def kernel_data(self, dense: bool = True) -> KernelData:
         """What the kernels see of this hull. dense: the support's cube map with cube_map_size's denser
-        cells (a standalone hull); False: the sparse one, which a robot scene's pools and the hulls
-        embedded in an STP-BV or a superellipsoid take (spq.kernels.support.cube_map_size)."""
+        cells (a standalone hull, or the hull embedded in a standalone STP-BV); False: the sparse one,
+        which a robot scene's pools and a superellipsoid's inner polytope take
+        (spq.kernels.support.cube_map_size)."""
         if self._kernel is None:
             self._kernel = {}
         if dense not in self._kernel:

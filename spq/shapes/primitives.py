@@ -16,7 +16,7 @@ class Sphere(Shape):
         self.radius = as_positive(radius, "radius")
         self._kernel = KernelData(kinds.POINT, self.radius, np.zeros(1), np.zeros(1, dtype=kinds.IDATA_DTYPE))
 
-    def kernel_data(self) -> KernelData:
+    def kernel_data(self, dense: bool = True) -> KernelData:
         return self._kernel
 
     def bounding_radius(self) -> float:
@@ -38,7 +38,7 @@ class Box(Shape):
         """Box from its full edge lengths (m)."""
         return cls(0.5 * as_positive(sx, "sx"), 0.5 * as_positive(sy, "sy"), 0.5 * as_positive(sz, "sz"))
 
-    def kernel_data(self) -> KernelData:
+    def kernel_data(self, dense: bool = True) -> KernelData:
         return self._kernel
 
     def bounding_radius(self) -> float:
@@ -58,7 +58,7 @@ class Capsule(Shape):
         self._kernel = KernelData(kinds.SEGMENT, self.radius, np.array([self.half_length]),
                                   np.zeros(1, dtype=kinds.IDATA_DTYPE))
 
-    def kernel_data(self) -> KernelData:
+    def kernel_data(self, dense: bool = True) -> KernelData:
         return self._kernel
 
     def bounding_radius(self) -> float:
