@@ -102,6 +102,49 @@ def test_support_is_never_beaten_by_dense_surface_samples(params):
     assert (h_support - h_samples).max() < 2e-3 * np.abs(v).sum(axis=1).max() * max(params[:3])
 
 
+@pytest.mark.parametrize("params", SHAPES)
+def test_support_value_is_the_reach_of_dense_surface_samples(params):
+    from spq.kernels.superellipsoid_support import support_value
+
+    f = spq.Superellipsoid(*params).kernel_data().fdata
+    samples = parametric_surface(100_000, *params, seed=4)
+    v = directions_with_zero_components(360, seed=5)
+    v[::7] *= 1e3  # at the direction's own scale
+    h = np.array([support_value(f, *d) for d in v])
+    h_samples = (v @ samples.T).max(axis=1)
+    scale = np.abs(v).sum(axis=1) * max(params[:3])
+    assert (h_samples <= h + 1e-12 * scale).all()
+    assert (h - h_samples).max() < (2e-3 * scale).max()
+
+
+@pytest.mark.parametrize("params", [(0.3, 0.2, 0.1, 0.1, 0.1), (0.3, 0.2, 0.1, 1.0, 1.0), (0.07, 0.12, 0.09, 0.3, 0.3),
+                                    (0.077, 0.083, 0.137, 0.42, 1.02), (0.05, 0.12, 0.08, 0.5, 1.1)])
+def test_support_value_along_a_surface_normal_is_the_normal_dot_the_point(params):
+    """The closest-point Newton's lower bound takes A's side of the slab without a support call:
+    along the normal at x / G(x), A reaches n . (x / G(x)) = 1 / |grad G(x)|. The normal here is
+    central differences of F written out (tests' implicit_F), and the point is on the surface."""
+    from spq.kernels.closest_points_newton import _to_gauge, implicit
+    from spq.kernels.superellipsoid_support import support_value
+
+    f = spq.Superellipsoid(*params).kernel_data().fdata
+    rng = np.random.default_rng(6)
+    on_surface = parametric_surface(300, *params, seed=7)
+    keep = (np.abs(on_surface) > 1e-3 * np.array(params[:3])).all(axis=1)  # away from the coordinate planes
+    for x in on_surface[keep]:
+        h = 1e-7 * max(params[:3])
+        grad = np.array([(implicit_F((x + h * e)[None], *params)[0] - implicit_F((x - h * e)[None], *params)[0]) / (2 * h)
+                         for e in np.eye(3)])
+        n = grad / np.linalg.norm(grad)
+        assert support_value(f, *n) == pytest.approx(n @ x, rel=1e-9)
+        # and the kernel's gauge gradient, at a point scaled off the surface, gives the same value
+        s = rng.uniform(0.3, 1.5)
+        g, H = np.empty(3), np.empty((3, 3))
+        G = _to_gauge(implicit(f, *(s * x), g, H), params[3], g, H)
+        assert G == pytest.approx(s, rel=1e-13)
+        assert 1.0 / np.linalg.norm(g) == pytest.approx(n @ x, rel=1e-9)
+        assert 1.0 / np.linalg.norm(g) == pytest.approx(support_value(f, *(g / np.linalg.norm(g))), rel=1e-13)
+
+
 def test_support_of_the_diamond_limit_e_equals_two_is_an_octahedron_vertex():
     a, b, c = 0.3, 0.2, 0.1
     vertices = np.array([[a, 0, 0], [-a, 0, 0], [0, b, 0], [0, -b, 0], [0, 0, c], [0, 0, -c]])

@@ -130,8 +130,7 @@ def superellipsoid_support(f, d0, d1, d2, out):
 
 @kernel(inline="always")
 def support_point(f, d0, d1, d2):
-    """superellipsoid_support's point as a tuple, inlined: a caller that takes two supports at once
-    (closest_points_newton's certificate) has their chains of logarithms and exponentials overlap."""
+    """superellipsoid_support's point as a tuple (inlined)."""
     a0, a1, a2 = abs(d0), abs(d1), abs(d2)
     vmax = max(a0, a1, a2)
     if not (vmax > 0.0):
@@ -148,6 +147,21 @@ def support_point(f, d0, d1, d2):
                 math.copysign(f[F_C] * u2 * k, d2))
     w0, w1, wm, wz, _, _ = _octant_parts(f, u0, u1, u2)
     return math.copysign(f[F_A] * w0 * wm, d0), math.copysign(f[F_B] * w1 * wm, d1), math.copysign(f[F_C] * wz, d2)
+
+
+@kernel(inline="always")
+def support_value(f, d0, d1, d2):
+    """The support function max_x d.x of the superellipsoid fdata ``f`` (its own frame) along the
+    nonzero (d0, d1, d2), at the direction's own scale: the dual norm h(u) of _octant_parts, without
+    the support point's weights (a certificate's lower bound needs the value alone)."""
+    a0, a1, a2 = abs(d0), abs(d1), abs(d2)
+    vmax = max(a0, a1, a2)
+    u0 = f[F_A] * (a0 / vmax)
+    u1 = f[F_B] * (a1 / vmax)
+    u2 = f[F_C] * (a2 / vmax)
+    if f[F_E1] == 1.0 and f[F_E2] == 1.0:
+        return vmax * math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    return vmax * _octant_parts(f, u0, u1, u2)[5]
 
 
 @kernel(inline="always")
