@@ -297,17 +297,18 @@ def _widest_slab(a, oracle_b, pose_a, pose_b, n0):
     return -min(res.fun, minus_gap(np.zeros(2)))
 
 
-@pytest.mark.parametrize("R", [0.3, 2.0])
-def test_superellipsoid_against_stp_agrees_with_the_plain_descent_and_the_brute_force_supports(link4, R):
+@pytest.mark.parametrize("R, exponents", [(0.3, (0.6, 1.3)), (2.0, (0.6, 1.3)), (2.0, (0.25, 0.35))])
+def test_superellipsoid_against_stp_agrees_with_the_plain_descent_and_the_brute_force_supports(link4, R, exponents):
     """Newton's finish between a superellipsoid and an STP-BV (two curved sides), either way round,
     cold and along a trajectory, against the plain descent on the shapes' own supports and the
-    separating-plane bound of the STP-BV's brute-force support along the returned normal."""
+    separating-plane bound of the STP-BV's brute-force support along the returned normal. Boxy
+    exponents take Newton on the superellipsoid's nearest point where Newton on the normal stalls."""
     from harness.references.stp_oracle import BruteForceSTP
 
     points = link4.vertices[np.random.default_rng(32).choice(len(link4.vertices), 30, replace=False)]
     stp = STPBV.from_points(points, 0.005, R)
     oracle = BruteForceSTP(points, 0.005, R)
-    cse = spq.Superellipsoid(0.06, 0.04, 0.08, 0.6, 1.3)
+    cse = spq.Superellipsoid(0.06, 0.04, 0.08, *exponents)
     pa, pb = random_poses(150, seed=33, translation_range=0.15)
     forward, _ = both_orders(cse, stp, pa, pb)
     sep = forward.status == "separated"
@@ -331,3 +332,69 @@ def test_superellipsoid_against_stp_agrees_with_the_plain_descent_and_the_brute_
     warm = spq.distances(cse, stp, path_a, path_b, coherent=True)
     np.testing.assert_array_equal(cold.status, warm.status)
     np.testing.assert_allclose(warm.distance, cold.distance, rtol=0, atol=3e-10)
+
+
+@pytest.mark.parametrize("exponents", [(0.25, 0.35), (1.0, 0.3), (1.0, 1.0)])
+def test_patch_newton_converges_from_a_rough_normal_to_the_plain_descents_distance(link4, exponents):
+    """Newton on a superellipsoid's point nearest an STP-BV's patch (kernels.patch_newton), either way
+    round, started from the plain descent's normal turned by about a degree (newton_normal hands
+    over its best normal): where it converges, its bounds hold the plain descent's distance, its
+    points lie on the superellipsoid (F = 1, numpy) and on the STP-BV's boundary (its brute-force
+    support value along the normal), they are the upper bound apart, and most runs converge."""
+    from harness.references.stp_oracle import BruteForceSTP
+    from spq.kernels import batch as kb
+    from spq.kernels.patch_newton import PATCH_STEPS, patch_newton, patch_newton_pair
+
+    points = link4.vertices[np.random.default_rng(35).choice(len(link4.vertices), 30, replace=False)]
+    stp = STPBV.from_points(points, 0.005, 2.0)
+    oracle = BruteForceSTP(points, 0.005, 2.0)
+    a, b, c = 0.06, 0.04, 0.08
+    cse = spq.Superellipsoid(a, b, c, *exponents)
+    kc, ks = cse.kernel_data(), stp.kernel_data()
+    assert patch_newton_pair(kc.kind, kc.fdata, ks.kind, ks.fdata) and patch_newton_pair(ks.kind, ks.fdata, kc.kind,
+                                                                                         kc.fdata)
+    rng = np.random.default_rng(36)
+    pa, pb = random_poses(40, seed=37, translation_range=0.15)
+    runs = converged = 0
+    for i in range(len(pa)):
+        st, d_upper, d_lower = plain_descent(cse, stp, pa[i], pb[i])
+        if st != gjk.SEPARATED or d_upper < 1e-3:
+            continue
+        for first, second, Ta, Tb in ((cse, stp, pa[i], pb[i]), (stp, cse, pb[i], pa[i])):
+            k1, k2 = first.kernel_data(), second.kernel_data()
+            R, t = np.empty((3, 3)), np.empty(3)
+            kb.relative_pose(Ta, Tb, R, t)
+            pair = (k1.kind, k1.margin, k1.fdata, k1.idata, k2.kind, k2.margin, k2.fdata, k2.idata, R, t)
+            # the plain descent's normal (A to B, A's frame: -v, v the nearest point of A - B), turned
+            work = np.empty((gjk.WORK_ROWS, 4))
+            v = np.array(gjk.descend(pair, (1e-12, 1e-12, 2000), np.zeros(3), np.zeros(gjk.WARM_SIZE, dtype=np.int64),
+                                     work)[2:5])
+            n = -v / np.linalg.norm(v) + rng.normal(scale=0.01, size=3)
+            n /= np.linalg.norm(n)
+            pts_a, pts_b = np.empty(3), np.empty(3)
+            hints = np.full(2, -1, dtype=np.int64)
+            ok, evaluations, upper, lower, m0, m1, m2 = patch_newton(pair, (n[0], n[1], n[2]), 1e-10, 1e-10, pts_a,
+                                                                     pts_b, np.empty((8, 4)), hints)
+            runs += 1
+            assert 1 <= evaluations <= PATCH_STEPS
+            if not ok:
+                continue
+            converged += 1
+            assert lower > 0.0 and upper - lower <= 1e-10 + 1e-10 * upper
+            assert lower <= d_upper + 1e-12 and upper >= d_lower - 1e-12
+            assert abs(np.linalg.norm(pts_b - pts_a) - upper) <= 1e-12
+            # the points in world coordinates, each on its own body's boundary
+            world_a = Ta[:3, :3] @ pts_a + Ta[:3, 3]
+            world_b = Ta[:3, :3] @ pts_b + Ta[:3, 3]
+            on_cse, on_stp = (world_a, world_b) if first is cse else (world_b, world_a)
+            Tc, Ts = (pa[i], pb[i])
+            x = Tc[:3, :3].T @ (on_cse - Tc[:3, 3])
+            e1, e2 = exponents
+            F = (np.abs(x[0] / a) ** (2 / e2) + np.abs(x[1] / b) ** (2 / e2)) ** (e2 / e1) + np.abs(x[2] / c) ** (2 / e1)
+            assert abs(F - 1.0) <= 1e-9
+            m_world = Ta[:3, :3] @ np.array([m0, m1, m2])  # A to B
+            u = Ts[:3, :3].T @ (-m_world if first is cse else m_world)  # the STP-BV's outward normal, its frame
+            y = Ts[:3, :3].T @ (on_stp - Ts[:3, 3])
+            assert abs(oracle.support_many(u)[0] @ u - y @ u) <= 1e-9
+    assert runs >= 20
+    assert converged >= 0.85 * runs, (converged, runs)
