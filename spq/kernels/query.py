@@ -60,7 +60,7 @@ from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
 from spq.kernels.closest_points_newton import PRIMAL_INNER_REL_TOL, closest_points_newton, primal_pair
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_against_stp, smooth_pair
-from spq.kernels.patch_newton import patch_newton, patch_newton_pair
+from spq.kernels.patch_newton import patch_newton, patch_newton_first, patch_newton_pair
 from spq.kernels.epa import EPA_RESULT, bounds_closed, epa, epa_run, epa_start
 from spq.kernels.epa_layout import EPA_TMP
 from spq.kernels.signed import (
@@ -1049,9 +1049,11 @@ def newton_on_patches(pair, v, vv, tol, scratch, dir_io, warm, work, out):
     on the normal from the loose search on the STP-BV's grown hull (closest point v of the difference,
     |v|^2 = vv; its simplex's hull vertices in scratch), whose small spheres start the patch
     searches. Both sides are curved, where GJK converges only linearly (about 15 iterations to
-    1e-10 on Table I's CSE-STP). Returns the evaluations used (result in out, the facing patches in
-    warm for the next query), or -1 - evaluations with the best normal in dir_io for the plain
-    descent (the loose search's simplex in work is then overwritten)."""
+    1e-10 on Table I's CSE-STP). Against a boxy superellipsoid (exponents at most 1.1) Newton on its
+    point nearest the STP-BV's patch (patch_newton) takes over where Newton on the normal fails, and
+    runs first where an exponent is at most 0.3. Returns the evaluations used (result in out, the
+    facing patches in warm for the next query), or -1 - evaluations with the best normal in dir_io
+    for the plain descent (the loose search's simplex in work is then overwritten)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     tol_abs, tol_rel, max_iter = tol
     if kA == STP:
@@ -1062,12 +1064,19 @@ def newton_on_patches(pair, v, vv, tol, scratch, dir_io, warm, work, out):
     PA = work[4:8]
     PB = work[8:12]
     lam = work[12]
+    e0 = 0
+    if patch_newton_first(kA, fA, kB, fB):
+        ok, e0, upper, lower, m0, m1, m2 = patch_newton(pair, (-v[0] / n, -v[1] / n, -v[2] / n), tol_abs, tol_rel,
+                                                        PA[0], PB[0], work[13:DESCENT_ROWS], warm)
+        if ok:
+            _finish_at_points(PA, PB, lam, upper, lower, e0, mA, mB, tol_abs, dir_io, out)
+            return e0
     ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(pair, (-v[0] / n, -v[1] / n, -v[2] / n), 0.0, tol_abs,
                                                               tol_rel, PA[0], PB[0], work[13:DESCENT_ROWS], warm)
+    evaluations += e0
     if not ok and patch_newton_pair(kA, fA, kB, fB):
         # a boxy superellipsoid, whose support map's derivative jumps near its faces' normals: Newton
-        # on its point nearest the STP-BV's patch, from the best normal found (from the search's
-        # normal instead, a third of these runs failed on Table I's links)
+        # on its point nearest the STP-BV's patch, from the best normal found
         ok, more, upper, lower, p0, p1, p2 = patch_newton(pair, (m0, m1, m2), tol_abs, tol_rel, PA[0], PB[0],
                                                           work[13:DESCENT_ROWS], warm)
         evaluations += more
