@@ -105,9 +105,11 @@ def run(config: Config) -> Output:
         f"two of them, spq runs GJK on polytopes inscribed in them ({INNER_DIRECTIONS} support points each; an overlap there is "
         "theirs), then Newton's method on the two closest points (where neither is pointy, exponents at most "
         "1.1: boxy faces are flat in space but make the support map jump) or on the contact normal with the "
-        "supports' analytic derivatives, which closes the 1e-10 m certificate in a few steps. Against an STP-BV, the same Newton steps start from the "
-        "normal between the inscribed polytope and the STP-BV's grown hull, with the sphere and torus patches' "
-        "derivatives; against a PCH (a flat side), the plain GJK runs.")
+        "supports' analytic derivatives, which closes the 1e-10 m certificate in a few steps. Against an STP-BV, Newton on the "
+        "contact normal starts from the normal between the inscribed polytope and the STP-BV's grown hull, with the sphere "
+        "and torus patches' derivatives, and a boxy superellipsoid (exponents at most 1.1) takes Newton on its point "
+        "nearest the facing patch's ball where that stalls (first, where an exponent is at most 0.3); against a PCH "
+        "(a flat side), the plain GJK runs.")
     md = [f"# Table I: proximity queries per second ({config.object})", "",
           (f"Two copies of {config.object} ({bodies['PCH'].features} hull vertices) covered by a PCH-BV, an STP-BV "
            f"(r = {config.r} m, R = {config.R} m) and a CSE-BV ({cse_text}). {config.poses} pose pairs: uniformly "
