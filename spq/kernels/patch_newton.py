@@ -48,16 +48,6 @@ PATCH_HALVINGS = 4  # halvings of a step in a row that raised the upper bound
 
 
 @kernel(inline="always")
-def patch_newton_first(kA, fA, kB, fB):
-    """Whether the pair's superellipsoid against an STP-BV has an exponent at most PATCH_FIRST_EXPONENT."""
-    if kA == STP and kB == SUPERELLIPSOID:
-        return min(fB[F_E1], fB[F_E2]) <= PATCH_FIRST_EXPONENT
-    if kB == STP and kA == SUPERELLIPSOID:
-        return min(fA[F_E1], fA[F_E2]) <= PATCH_FIRST_EXPONENT
-    return False
-
-
-@kernel(inline="always")
 def patch_newton_pair(kA, fA, kB, fB):
     """Whether one body is an STP-BV and the other a superellipsoid with both exponents at most
     PRIMAL_MAX_EXPONENT (its implicit function's Hessian bounded)."""
@@ -66,6 +56,16 @@ def patch_newton_pair(kA, fA, kB, fB):
     if kB == STP and kA == SUPERELLIPSOID:
         return max(fA[F_E1], fA[F_E2]) <= PRIMAL_MAX_EXPONENT
     return False
+
+
+@kernel(inline="always")
+def patch_newton_first(kA, fA, kB, fB):
+    """Whether the pair is a patch_newton_pair whose superellipsoid has an exponent at most
+    PATCH_FIRST_EXPONENT."""
+    if not patch_newton_pair(kA, fA, kB, fB):
+        return False
+    f = fB if kA == STP else fA
+    return min(f[F_E1], f[F_E2]) <= PATCH_FIRST_EXPONENT
 
 
 @kernel
