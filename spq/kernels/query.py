@@ -1077,11 +1077,9 @@ def newton_on_patches(pair, v, vv, tol, scratch, dir_io, warm, work, out):
     if not ok and patch_newton_pair(kA, fA, kB, fB):
         # a boxy superellipsoid, whose support map's derivative jumps near its faces' normals: Newton
         # on its point nearest the STP-BV's patch, from the best normal found
-        ok, more, upper, lower, p0, p1, p2 = patch_newton(pair, (m0, m1, m2), tol_abs, tol_rel, PA[0], PB[0],
-                                                          work[13:DESCENT_ROWS], warm)
+        ok, more, upper, lower, _, _, _ = patch_newton(pair, (m0, m1, m2), tol_abs, tol_rel, PA[0], PB[0],
+                                                       work[13:DESCENT_ROWS], warm)
         evaluations += more
-        if ok:
-            m0, m1, m2 = p0, p1, p2
     if not ok:
         dir_io[0], dir_io[1], dir_io[2] = m0, m1, m2
         return -1 - evaluations
