@@ -274,6 +274,55 @@ def test_a_bad_pose_value_raises_on_the_machine_code_path_too(signed):
         assert result.distance == result.upper_bound, name
 
 
+def _first_pose_problem(T):
+    """The oracle for the kernel's pose check: numpy's classification, tested in the kernel's order."""
+    from spq.kernels.batch import POSE_BAD_BOTTOM_ROW, POSE_NOT_FINITE, POSE_NOT_ROTATION, POSE_OK
+    from spq.validation import ROTATION_TOL
+    if not np.isfinite(T).all():
+        return POSE_NOT_FINITE
+    if not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
+        return POSE_BAD_BOTTOM_ROW
+    R = T[:3, :3]
+    if np.abs(R.T @ R - np.eye(3)).max() > ROTATION_TOL or abs(np.linalg.det(R) - 1.0) > ROTATION_TOL:
+        return POSE_NOT_ROTATION
+    return POSE_OK
+
+
+def test_the_kernels_pose_check_classifies_as_numpy_does():
+    """The compiled pose check (every query's first step) gives the code of a pose's first problem.
+    Oracle: numpy's classification of rotations with one entry made NaN or inf,
+    a bottom row moved, the rotation scaled, sheared or reflected by twice or half the tolerance
+    (away from the boundary, where the two sums' rounding could differ)."""
+    from spq.kernels.batch import check_pose
+    from spq.validation import ROTATION_TOL
+    rng = np.random.default_rng(7)
+    poses = []
+    for rot in Rotation.random(60, random_state=8).as_matrix():
+        T = pose(rot, rng.uniform(-5, 5, 3))
+        poses.append(T)
+        for value in (np.nan, np.inf, -np.inf):
+            for r, c in ((0, 0), (2, 1), (1, 3), (3, 2), (2, 3)):
+                bad = T.copy()
+                bad[r, c] = value
+                poses.append(bad)
+        for c in range(4):
+            bad = T.copy()
+            bad[3, c] += 1e-12
+            poses.append(bad)
+        for k in (0.5, 2.0, -0.5, -2.0):
+            scaled = T.copy()
+            scaled[:3, rng.integers(3)] *= 1.0 + k * ROTATION_TOL
+            sheared = T.copy()
+            sheared[:3, 0] += k * ROTATION_TOL * T[:3, 1]
+            poses += [scaled, sheared]
+        reflected = T.copy()
+        reflected[:3, 2] *= -1.0
+        poses.append(reflected)
+    codes = [check_pose(T) for T in poses]
+    assert codes == [_first_pose_problem(T) for T in poses]
+    assert len(set(codes)) == 4  # every code reached
+
+
 @pytest.mark.parametrize("kwargs", [dict(tol=-1), dict(tol=np.nan), dict(tol=0, rel_tol=0), dict(max_iter=0)])
 def test_bad_tolerances_raise_value_error(kwargs):
     with pytest.raises(ValueError):
