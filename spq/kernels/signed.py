@@ -175,7 +175,8 @@ def signed_finish(pair, tol, status, k, vv, lower, it,
                 # met its bounds: the plane across D bounds sd from below)
                 out[OUT_STATUS] = FAILED
         settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out)
-        settle_by_search(pair, tol_abs, tol_rel, warm, work, out)
+        if out[OUT_STATUS] == FAILED:  # (tested here: a call passes the pair's arrays even to return at once)
+            settle_by_search(pair, tol_abs, tol_rel, warm, work, out)
     else:
         descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
         if status == FAILED and not lower > 0.0:
