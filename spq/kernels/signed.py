@@ -175,8 +175,9 @@ def signed_finish(pair, tol, status, k, vv, lower, it,
                 # met its bounds: the plane across D bounds sd from below)
                 out[OUT_STATUS] = FAILED
         settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out)
-        if out[OUT_STATUS] == FAILED:  # (tested here: a call passes the pair's arrays even to return at once)
-            settle_by_search(pair, tol_abs, tol_rel, warm, work, out)
+        if out[OUT_STATUS] == FAILED and outcome == EPA_RESULT and out[OUT_UPPER] < -tol_abs:
+            # (tested here: a call passes the pair's arrays even to return at once)
+            settle_by_search(pair, tol_abs, tol_rel, min(SEARCH_EVALUATIONS, 32 * max_iter), warm, work, out)
     else:
         descent_result(status, k, lam, PA, PB, lower, it, tol_abs, d0, d1, d2, out)
         if status == FAILED and not lower > 0.0:
@@ -216,8 +217,10 @@ SEARCH_EVALUATIONS = 512  # support pairs at most (about 50 us, on a result that
 
 
 @kernel
-def settle_by_search(pair, tol_abs, tol_rel, warm, work, out):
-    """A failed result settled by a better lower bound, where that closes its bounds: sd >= -h_D(n)
+def settle_by_search(pair, tol_abs, tol_rel, evaluations_left, warm, work, out):
+    """A failed overlap (the EPA's result, its bounds open) settled by a better lower bound, where that
+    closes its bounds, within evaluations_left support pairs (the caller's: at most SEARCH_EVALUATIONS,
+    and 32 per max_iter as the EPA's expansions, so that max_iter still caps a query): sd >= -h_D(n)
     for every unit n, so a compass search about the result's normal (eight directions in its tangent
     plane, the step halved when none raises the bound) may find one the EPA did not. Where a
     superellipsoid's nearly flat side meets a polytope, D is nearly flat about its deepest point and
@@ -237,13 +240,15 @@ def settle_by_search(pair, tol_abs, tol_rel, warm, work, out):
     best = -core_support(pair, n0, n1, n2, warm, work)
     evaluations = 1
     step = SEARCH_FIRST_STEP
-    while step >= SEARCH_LAST_STEP and evaluations < SEARCH_EVALUATIONS:
+    while step >= SEARCH_LAST_STEP and evaluations < evaluations_left:
         if bounds_closed(upper, max(lower, best), tol_abs, tol_rel):
             set_result(upper, max(lower, best), out[OUT_ITERATIONS] + evaluations, tol_abs, out)
             return
         b0, b1, b2, e0, e1, e2 = tangent_basis(n0, n1, n2)
         moved = False
         for k in range(8):
+            if evaluations >= evaluations_left:
+                break
             x = step if k == 0 or k == 4 or k == 6 else (-step if k == 1 or k == 5 or k == 7 else 0.0)
             y = step if k == 2 or k == 4 or k == 7 else (-step if k == 3 or k == 5 or k == 6 else 0.0)
             c0, c1, c2 = step_on_sphere(n0, n1, n2, b0, b1, b2, e0, e1, e2, x, y)
