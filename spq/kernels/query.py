@@ -978,8 +978,7 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
                                          OVERLAPPING, 4, 0.0, 0.0, used, dir_io, warm, work, iwork, out)
                 return _done(out, used, dir_io)
             extra = -used - 1
-    status, k, v0, v1, v2, vv, lower, it = descend_inline(pair, tol,
-                                                   dir_io, warm, work)
+    status, k, v0, v1, v2, vv, lower, it = descend_inline(pair, tol, dir_io, warm, work)
     if signed and status == SEPARATED:  # (signed_finish's and its callees' calls were 5% of such a query)
         return separated_result(k, lower, it + extra, tol_abs, mA, mB, dir_io, work, out)
     if signed or status == FAILED:
