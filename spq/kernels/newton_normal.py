@@ -87,7 +87,7 @@ def _evaluate(pair, n0, n1, n2, pa, pb, tmp, JA, JB, hints):
 
 
 @kernel(inline="always")
-def _tangent_basis(n0, n1, n2):
+def tangent_basis(n0, n1, n2):
     """Two unit vectors completing the unit n to an orthonormal basis."""
     if abs(n0) < 0.6:
         x0, x1, x2 = 0.0, n2, -n1  # n x (1, 0, 0)
@@ -169,7 +169,7 @@ def newton_normal(pair, n, lower, tol_abs, tol_rel, best_a, best_b, work, hints)
             slope *= alpha
             step0 *= alpha
             step1 *= alpha
-            n0, n1, n2 = _step(m0, m1, m2, b0, b1, b2, e0, e1, e2, step0, step1)
+            n0, n1, n2 = step_on_sphere(m0, m1, m2, b0, b1, b2, e0, e1, e2, step0, step1)
             continue
         lower = max(lower, lo)
         if not ok or not (lo > 0.0):
@@ -177,7 +177,7 @@ def newton_normal(pair, n, lower, tol_abs, tol_rel, best_a, best_b, work, hints)
         halvings = 0
         accepted = lo
         m0, m1, m2 = n0, n1, n2
-        b0, b1, b2, e0, e1, e2 = _tangent_basis(n0, n1, n2)
+        b0, b1, b2, e0, e1, e2 = tangent_basis(n0, n1, n2)
         a00 = _form(JA, JB, R, b0, b1, b2, b0, b1, b2) + lo
         a01 = _form(JA, JB, R, b0, b1, b2, e0, e1, e2)
         a11 = _form(JA, JB, R, e0, e1, e2, e0, e1, e2) + lo
@@ -190,12 +190,12 @@ def newton_normal(pair, n, lower, tol_abs, tol_rel, best_a, best_b, work, hints)
         step1 = scale * (a00 * r1 - a01 * r0) / det
         slope = r0 * step0 + r1 * step1
         scale = min(1.0, GROWTH * scale)
-        n0, n1, n2 = _step(m0, m1, m2, b0, b1, b2, e0, e1, e2, step0, step1)
+        n0, n1, n2 = step_on_sphere(m0, m1, m2, b0, b1, b2, e0, e1, e2, step0, step1)
     return False, evaluations, upper, lower, m0, m1, m2
 
 
 @kernel(inline="always")
-def _step(m0, m1, m2, b0, b1, b2, e0, e1, e2, x, y):
+def step_on_sphere(m0, m1, m2, b0, b1, b2, e0, e1, e2, x, y):
     """The unit vector along m + x b + y e."""
     n0 = m0 + x * b0 + y * e0
     n1 = m1 + x * b1 + y * e1

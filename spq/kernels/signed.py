@@ -42,8 +42,7 @@ from spq.kernels.gjk import (
     minkowski_support,
 )
 from spq.kernels.jit import kernel
-from spq.kernels.newton_normal import _step as step_on_sphere
-from spq.kernels.newton_normal import _tangent_basis as tangent_basis
+from spq.kernels.newton_normal import step_on_sphere, tangent_basis
 
 # how signed_from_hulls ended, kept in the scratch (work[EPA_ROW + EPA_TMP + 1, 3]) for diagnostics
 HULL_SETTLED, HULL_CONTINUED, HULL_RESTARTED, HULL_PATCHES = 1, 2, 3, 4
