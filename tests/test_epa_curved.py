@@ -1,13 +1,15 @@
 """The curved sets that certify the EPA's faces (spq.kernels.epa_curved), against independent checks:
 every point sampled from the certified cap lies in the set, tested by its own definition (a point of
-the circular segment swept along the polytope's edge; a point of the ball segment), and the bound
-reaches the set's depth where the face's normal is the deepest one."""
+the circular segment swept along the polytope's edge); every normal a ball segment must lift has its
+support, found numerically over the segment's cap, at least the certified offset; and the bounds
+reach the set's depth where the face's normal is the deepest one."""
 
 import math
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.optimize import minimize_scalar
 
 from spq.kernels.epa_curved import ball_segment_reach, cylinder_reach, halfspace_reach
 
@@ -85,22 +87,80 @@ def test_cylinder_cap_lies_in_the_swept_segment_and_reaches_its_depth(seed, tilt
         assert all(_in_swept_segment(z, m, e, a, y1, y2, wn) for z in _cap_points(rng, n, d, r))
 
 
+def _segment_support(C, s, alpha, v):
+    """max of z.v over the ball segment's cap {C + RHO w : angle(w, s) <= alpha}, numerically: w = v where v
+    lies in the cap's cone (Cauchy-Schwarz), else the best of the rim sampled, refined by a bounded search."""
+    if v @ s >= math.cos(alpha):
+        return C @ v + RHO
+    q1 = _unit(np.cross(s, [1.0, 0.0, 0.0] if abs(s[0]) < 0.9 else [0.0, 1.0, 0.0]))
+    q2 = np.cross(s, q1)
+
+    def rim(t):
+        return C @ v + RHO * (math.cos(alpha) * (s @ v) + math.sin(alpha) * (math.cos(t) * (q1 @ v) + math.sin(t) * (q2 @ v)))
+
+    t = np.linspace(0.0, 2.0 * math.pi, 721)
+    k = int(np.argmax([rim(x) for x in t]))
+    best = minimize_scalar(lambda x: -rim(x), bounds=(t[max(k - 1, 0)], t[min(k + 1, 720)]), method="bounded",
+                           options={"xatol": 1e-12})
+    return max(rim(t[k]), -best.fun)
+
+
+def _normals_near(rng, n, gamma, toward, count=200):
+    """Unit normals within gamma of n: its rim circle, the rim's point farthest from ``toward``, random ones inside."""
+    q1 = _unit(np.cross(n, rng.normal(size=3)))
+    q2 = np.cross(n, q1)
+    t = np.linspace(0.0, 2.0 * math.pi, count)
+    rim = math.cos(gamma) * n + math.sin(gamma) * (np.cos(t)[:, None] * q1 + np.sin(t)[:, None] * q2)
+    away = toward - (toward @ n) * n
+    far = [math.cos(gamma) * n - math.sin(gamma) * _unit(away)] if np.linalg.norm(away) > 1e-15 else []
+    ang = gamma * np.sqrt(rng.uniform(0, 1, size=count))
+    phi = rng.uniform(0.0, 2.0 * math.pi, size=count)
+    inside = np.cos(ang)[:, None] * n + np.sin(ang)[:, None] * (np.cos(phi)[:, None] * q1 + np.sin(phi)[:, None] * q2)
+    return np.vstack([rim, inside] + ([np.array(far)] if far else []))
+
+
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1))
-def test_ball_segment_cap_lies_in_the_segment(seed):
+@given(seed=st.integers(0, 2**32 - 1), tilt=st.sampled_from([0.0, 1e-3, 1e-2, 5e-2]),
+       below=st.sampled_from([1e-8, 1e-5, 1e-3, 1e-2]))
+def test_ball_segment_reach_holds_every_normal_the_ray_bound_leaves(seed, tilt, below):
+    """Where the face is certified to r, every normal v within gamma = acos(d / r) of the face's (those the
+    ray through the face does not lift to r) has the segment's support, found numerically, at least r;
+    where it is not (and r would exceed the face), the normal gamma from n away from s falls short."""
     rng = np.random.default_rng(seed)
-    u = _unit(rng.normal(size=3))
-    alpha = rng.uniform(1e-3, 0.3)
+    s = _unit(rng.normal(size=3))
+    alpha = rng.choice([1e-3, 1e-2, 0.1]) * rng.uniform(0.5, 1.0)
     depth = rng.uniform(0.002, 0.05)
-    C = -(RHO - depth) * _unit(u + rng.normal(size=3) * rng.uniform(0, alpha))
-    n = _unit(-C + rng.normal(size=3) * rng.choice([0.0, 1e-3, 1e-2]) * np.linalg.norm(C))
-    d = (RHO - np.linalg.norm(C)) * 0.999 * (n @ _unit(-C))
-    r, v0, v1, v2, set_depth = ball_segment_reach(tuple(C), RHO, tuple(u), math.cos(alpha), n[0], n[1], n[2], d, d)
+    C = -(RHO - depth) * s
+    n = _unit(s + rng.normal(size=3) * tilt)
+    d = depth * (n @ s) * (1.0 - below)
+    r, v0, v1, v2, set_depth = ball_segment_reach(tuple(C), RHO, math.cos(alpha), n[0], n[1], n[2], d, d)
     assert set_depth <= RHO - np.linalg.norm(C)
-    if r > d:
-        z = _cap_points(rng, n, d, r)
-        assert (np.linalg.norm(z - C, axis=1) <= RHO + 1e-12).all()
-        assert (z @ u >= u @ C + RHO * math.cos(alpha) - 1e-12).all()
+    if r == -math.inf:
+        r = set_depth - 1e-12 * (RHO + np.abs(C).sum())
+        if r <= d:
+            return
+        gamma = math.acos(d / r)
+        far = math.cos(gamma) * n - math.sin(gamma) * _unit(s - (s @ n) * n)
+        if np.arccos(np.clip(n @ s, -1, 1)) + gamma < math.pi / 2:
+            assert _segment_support(C, s, alpha, far) < r + 1e-12
+        return
+    assert np.allclose((v0, v1, v2), s)
+    gamma = math.acos(min(d / r, 1.0))
+    for v in _normals_near(rng, n, gamma, s):
+        assert _segment_support(C, s, alpha, v) >= r - 1e-13
+
+
+def test_ball_segment_reach_lifts_a_face_well_below_the_depth():
+    """The support bound reaches faces about gamma^2 / 2 of the depth below it (here 5e-5 of 5 cm, a
+    segment of rim radius 2 mm, normals within 0.01 of its deepest), where a ball segment 1e-6 m thick could
+    hold no cap of B(0, r) beyond the face."""
+    s = _unit(np.array([0.3, -0.2, 0.9]))
+    depth, alpha = 0.05, 1e-3
+    C = -(RHO - depth) * s
+    n = _unit(s + 0.01 * _unit(np.cross(s, [1.0, 0.0, 0.0])))
+    d = depth * (n @ s) - 5e-5
+    r = ball_segment_reach(tuple(C), RHO, math.cos(alpha), n[0], n[1], n[2], d, d)[0]
+    assert r >= depth - 1e-11
 
 
 @settings(max_examples=100, deadline=None)

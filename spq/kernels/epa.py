@@ -83,7 +83,7 @@ from spq.kernels.epa_caps import (
     set_certified,
     support_sphere,
 )
-from spq.kernels.epa_curved import certifying_sides, clear_set, face_certificate, set_tried, tried
+from spq.kernels.epa_curved import certifying_sides, clear_set, face_certificate, may_certify, set_tried, tried
 from spq.kernels.gjk import (
     EPA_IOFF,
     EPA_ROW,
@@ -789,18 +789,20 @@ def _witness(work, iw, f, out):
 
 
 @kernel
-def _best_witness(work, sides, sd, out):
+def _best_witness(work, sd, out):
     """Witness points and normal of the exact deepest support kept (by _exact_deepest, or along a
-    curved set's deepest normal: sides, epa_curved.certifying_sides, not 0), sd the signed distance.
+    curved set's deepest normal), sd the signed distance.
 
-    Along a curved set's normal only the core's support point is the witness: the core is strictly
-    convex, the polytope is not, and its support set there is an edge or a face, whose vertex the
-    support returns (off the normal's line by up to the edge's length). Its witness is then the
-    core's point moved by sd along the normal, on the polytope's support plane within the bounds' gap."""
+    Along a curved set's normal only its core's support point is the witness: the core is strictly
+    convex there, the other side need not be (a polytope's support set is an edge or a face, whose
+    vertex the support returns, off the normal's line by up to the edge's length; another core's is
+    its point for a normal that is not quite D's deepest). Its witness is then the core's point moved
+    by sd along the normal, on the other side's support plane within the bounds' gap."""
     for c in range(3):
         out[OUT_POINT_A + c] = work[EPA_ROW + EPA_BEST, c]
         out[OUT_POINT_B + c] = work[EPA_ROW + EPA_BEST + 1, c]
         out[OUT_NORMAL + c] = work[EPA_ROW + EPA_BEST + 2, c]
+    sides = work[EPA_ROW + EPA_BEST + 1, 3]
     if sides == 1:  # A is the core
         for c in range(3):
             out[OUT_POINT_B + c] = out[OUT_POINT_A + c] + sd * out[OUT_NORMAL + c]
@@ -820,7 +822,7 @@ def _exact_deepest(pair, i, lower, warm, work):
         return lower
     h = _support_inline(pair, v0, v1, v2, warm, work)
     if -h > lower:
-        keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], v0, v1, v2)
+        keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], v0, v1, v2, 0)
         return -h
     return lower
 
@@ -962,10 +964,9 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
     sides = certifying_sides(kA, kB)
     first = nv
     clear_set(work)
-    # the deepest normal and depth of the deepest curved set that certified a face, whose support is
-    # taken once the polytope's bound has caught up with that depth (then it closes the gap)
-    pending = False
-    pd, pu0, pu1, pu2 = -math.inf, 0.0, 0.0, 0.0
+    # the depth of the deepest curved set that certified a face: its support along its deepest normal
+    # is taken when it is found, and closes the gap where that set is D's deepest part
+    pd = -math.inf
     f, off = _least_face(work, iw, top)
     near = False  # whether upper is the distance to P (the origin outside it), witnesses in out
     blocked = 0
@@ -982,19 +983,28 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
                     continue
                 break
             least = min(off, _blocked_least(work, iw, top))
-        if sides != 0 and off > 0.0 and off >= -lower * (1.0 - CERT_WINDOW) and not tried(work, f):
+        if sides != 0 and off > 0.0 and off >= -lower * (1.0 - CERT_WINDOW) and not tried(work, f) and \
+                may_certify(pair, sides, work, iw, f, first):
             set_tried(work, f, True)
             row = at(EPA_ROW + EPA_PLANES + f)
-            r, u0, u1, u2, depth = face_certificate(pair, sides, work, iw, f, first, work[row, 0], work[row, 1],
-                                                    work[row, 2], work[row, 3])
-            # a lift that leaves the face below the depth's upper bound less the tolerance only delays its
-            # expansion, unless it reaches the depth of a set deeper than any before (whose support may
-            # then lower that bound): such lifts are not taken
+            r, u0, u1, u2, depth, core = face_certificate(pair, sides, work, iw, f, first, work[row, 0],
+                                                          work[row, 1], work[row, 2], work[row, 3])
+            if r > off and depth > pd:
+                # a set deeper than any before: its support along its deepest normal at once, which
+                # bounds the depth from above at the set's own depth where the set is D's deepest part
+                # (taken later, once the polytope had caught up with the set, a set short of that let
+                # every face in reach be lifted to its depth and expanded all the same: kuka_link_4's
+                # STP-STP overlaps took twice the scans, stop 94)
+                pd = depth
+                h = _support_inline(pair, u0, u1, u2, warm, work)
+                if -h > lower:
+                    lower = -h
+                    keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], u0, u1, u2, core)
+            # a lift short of the depth's upper bound less the tolerance would only delay the face's
+            # expansion: such lifts are not taken
             gap = tol_abs + tol_rel * abs(lower)
-            if r > off and (r >= -lower - gap or r >= max(pd, depth) - gap):
+            if r > off and r >= -lower - gap:
                 set_certified(work, f, r)
-                if depth > pd:
-                    pending, pd, pu0, pu1, pu2 = True, depth, u0, u1, u2
                 continue
         if off >= 0.0:
             upper = min(upper, -least)  # (only faces of offset >= 0 are set aside)
@@ -1008,14 +1018,6 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         if bounds_closed(upper, lower, tol_abs, tol_rel):
             closed = True
             break
-        if pending and off >= pd - (tol_abs + tol_rel * pd):
-            pending = False
-            if -pd > lower:
-                h = _support_inline(pair, pu0, pu1, pu2, warm, work)
-                if -h > lower:
-                    lower = -h
-                    keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], pu0, pu1, pu2)
-                continue
         if it >= steps or nv >= EPA_MAX_VERTICES:
             stop = STOP_ITERATIONS if it >= steps else STOP_VERTICES
             break
@@ -1084,7 +1086,7 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         return EPA_OUTSIDE, closed, upper, lower, it, nv, top
     if not near:
         if has_best(work) and certified(work, f) > work[EPA_ROW + EPA_PLANES + f, 3]:
-            _best_witness(work, sides, upper, out)  # the face's own points would miss the certified offset
+            _best_witness(work, upper, out)  # the face's own points would miss the certified offset
         else:
             _witness(work, iw, f, out)
     out[OUT_DISTANCE] = upper

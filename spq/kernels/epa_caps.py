@@ -180,13 +180,16 @@ def deepest_normal(work, i):
 
 
 @kernel(inline="always")
-def keep_best(work, pa, pb, n0, n1, n2):
-    """The support points pa, pb along unit n as the exact witness (see exact_deepest)."""
+def keep_best(work, pa, pb, n0, n1, n2, core):
+    """The support points pa, pb along unit n as the witness (see exact_deepest). core: 0 where both are
+    exact (two spheres' caps about their deepest normal), else the side (1 A, 2 B) whose point is, the
+    other's then found from it (epa._best_witness)."""
     for c in range(3):
         work[EPA_ROW + EPA_BEST, c] = pa[c]
         work[EPA_ROW + EPA_BEST + 1, c] = pb[c]
     work[EPA_ROW + EPA_BEST + 2, 0], work[EPA_ROW + EPA_BEST + 2, 1], work[EPA_ROW + EPA_BEST + 2, 2] = n0, n1, n2
     work[EPA_ROW + EPA_BEST, 3] = 1.0
+    work[EPA_ROW + EPA_BEST + 1, 3] = core
 
 
 @kernel(inline="always")

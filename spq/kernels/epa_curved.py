@@ -25,23 +25,29 @@ Curved sets inside D close the bound instead:
 - A big sphere's support along every normal within alpha of u is its centre c plus rho times the
   normal (alpha: the room to its region's planes), so the core holds that cap's hull, the ball
   segment of B(c, rho) beyond the plane u.x = u.c + rho cos alpha, and D holds it moved by -y for any
-  point y of the polytope (ball_segment_reach). (epa_caps does the same between two spheres, once a
-  run is long; here the polytope's point needs no region of its own.)
+  point y of the other body (a polytope, or the other core). It is taken about the ball's own deepest
+  normal, and it certifies a face by its support, not by holding a cap (ball_segment_reach, below).
+  (epa_caps does the same between two spheres, once a run is long; here the other side's point needs
+  no region of its own.)
 
-A face F (unit normal n, offset d) is certified to offset r when the part of B(0, r) beyond its
-plane, Cap_F(r) = {|z| <= r, n.z >= d}, lies in such a set: B(0, r) within its ball or cylinder, and
-Cap_F(r) on the inner side of each cutting plane (its least value along the plane's normal, on its
-rim unless the ball's own least point lies in it: halfspace_reach). Points are taken as z = s - y,
-s on the core's side, so a core as B is the mirror image (z = -x).
+A face F (unit normal n, offset d) is certified to offset r when D's support is at least r along
+every normal of its cone (the EPA's bound is then the least certified offset). The cylinder does it
+by holding the part of B(0, r) beyond F's plane, Cap_F(r) = {|z| <= r, n.z >= d}: B(0, r) within the
+cylinder, and Cap_F(r) on the inner side of each cutting plane (its least value along the plane's
+normal, on its rim unless the ball's own least point lies in it: halfspace_reach). The ball segment
+does it by its support along the normals that the ray through F leaves below r (ball_segment_reach),
+which reaches faces about a thousand times farther below the depth at R = 2 m. Points are taken as
+z = s - y, s on the core's side, so a core as B is the mirror image (z = -x).
 
 The EPA (epa_run) certifies a face this way only when it is about to expand it as the least face,
 within CERT_WINDOW of the depth's upper bound, once per face (face_certificate): first from the
 deepest set found so far, then from the patches its corners came from (the run's own supports, not
-the hulls') with the polytope's distinct points among its corners, the arc or cap taken about the
-face's normal. A lift is taken only where it reaches the depth's upper bound less the tolerance, or
-the deepest set's depth; the support along that set's deepest normal bounds the depth from above
-once the polytope has caught up with it, and gives the witness points: the core's support point
-(unique, the core being strictly convex) and the polytope's from it along the normal (epa._best_witness).
+the hulls'): a big sphere less the corner's own point of the other side, or a torus swept between
+two distinct polytope points among the corners (its arc taken about the face's normal). The support
+along a new deepest set's deepest normal is taken at once: it bounds the depth from above, at the
+set's own depth where the set is D's deepest part, and gives the witness points (the core's support
+point, unique as the core is strictly convex, and the other side's along the normal:
+epa._best_witness). A lift is taken only where it reaches the depth's upper bound less the tolerance.
 On kuka_link_4's overlapping STP-PCH poses (random_poses seed 0, 20,000 pairs) this takes the EPA's
 iterations from 30.5 to 22.0 and a batched query from 9.88 to 8.90 us (same-process A/B, stop 64).
 """
@@ -65,16 +71,19 @@ SLACK = 1e-13  # relative: the sets' radii are taken this much (of the scale) sm
 
 @kernel(inline="always")
 def certifying_sides(kA, kB):
-    """1 where A is an STP-BV's core and B a polytope, 2 the other way round, else 0 (no curved sets).
+    """1 where A is an STP-BV's core and B a polytope, 2 the other way round, 3 for two cores (each
+    side's big spheres against the other's points; the cylinders need a polytope), else 0 (no curved
+    sets).
 
-    Between two cores (STP-STP) the sets were tried too, big spheres against the other core's points:
-    on kuka_link_4's overlaps they cut the iterations 43.6 -> 38.5 but cost more than that saved
-    (11.96 -> 12.69 us a pose), half of those overlaps ending torus against torus, where D is doubly
-    curved and no set here holds."""
+    Between two cores the ball segments that held a cap of B(0, r) cut kuka_link_4's overlaps'
+    iterations 43.6 -> 38.5 but cost more than that saved (11.96 -> 12.69 us a pose); by their support
+    (ball_segment_reach) they reach much farther (docs/notes/speed-45.md, stop 94)."""
     if kA == STP_CORE and kB == POLYTOPE:
         return 1
     if kB == STP_CORE and kA == POLYTOPE:
         return 2
+    if kA == STP_CORE and kB == STP_CORE:
+        return 3
     return 0
 
 
@@ -220,22 +229,65 @@ def big_sphere_cap(f, ix, p, u0, u1, u2):
     return c0, c1, c2, min(1.0, cos_alpha + CAP_SLACK * math.sqrt(max(0.0, 1.0 - cos_alpha * cos_alpha)) + 1e-15)
 
 
-@kernel
-def ball_segment_reach(C, rho, u, cos_alpha, n0, n1, n2, d, floor):
-    """(r, v0, v1, v2, depth): the largest r with Cap(r) = {|z| <= r, n.z >= d} inside the ball
-    segment B(C, rho) cut by u.z >= u.C + rho cos alpha (the hull of the sphere's cap of normals
-    within alpha of unit u); v the ball's deepest normal, depth rho - |C|. r = -inf where the ball's
-    bound is at most ``floor``."""
+SUPPORT_SLACK = 1e-12  # relative: taken off a support test's lift, for the rounding of its angles
+
+
+@kernel(inline="always")
+def _support_lift(C, rho, n0, n1, n2, d, floor):
+    """The geometric part of ball_segment_reach, before the cap's width is known: (r, |C|, s, cos Phi,
+    sin Phi, depth), r = -inf where the test cannot lift the face above ``floor`` whatever the cap."""
     C0, C1, C2 = C
-    u0, u1, u2 = u
     cn = math.sqrt(C0 * C0 + C1 * C1 + C2 * C2)
     scale = rho + abs(C0) + abs(C1) + abs(C2)
     depth = rho - cn - SLACK * scale
-    if not (depth > floor and cn > 0.0):
+    r = depth - SUPPORT_SLACK * scale
+    if not (cn > 0.0 and d > 0.0 and r > d and r > floor):
+        return -math.inf, cn, 0.0, 0.0, 0.0, 0.0, 0.0, depth
+    s0, s1, s2 = -C0 / cn, -C1 / cn, -C2 / cn
+    cg = d / r
+    sg = math.sqrt((r - d) * (r + d)) / r  # (no cancellation as in 1 - cg^2)
+    cp = n0 * s0 + n1 * s1 + n2 * s2
+    x0, x1, x2 = n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0
+    sp = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    cphi = cp * cg - sp * sg  # Phi = psi + gamma
+    sphi = sp * cg + cp * sg
+    # beta(Phi) is at most rho - |C| cos Phi (a cap as wide as Phi): no need to find the cap otherwise
+    if not (cp > 0.0 and cphi > 0.0 and rho - cn * cphi >= r):
+        return -math.inf, cn, s0, s1, s2, 0.0, 0.0, depth
+    return r, cn, s0, s1, s2, cphi, sphi, depth
+
+
+@kernel(inline="always")
+def _beta_holds(rho, cn, cphi, sphi, cos_alpha, r):
+    """Whether beta(Phi) = rho cos(max(0, Phi - alpha)) - |C| cos Phi >= r (ball_segment_reach)."""
+    if not cos_alpha < 1.0:
+        return False
+    if cphi >= cos_alpha:  # Phi <= alpha: the cap's own normals
+        return rho - cn * cphi >= r
+    sa = math.sqrt(max(0.0, (1.0 - cos_alpha) * (1.0 + cos_alpha)))
+    return rho * (cphi * cos_alpha + sphi * sa) - cn * cphi >= r
+
+
+@kernel
+def ball_segment_reach(C, rho, cos_alpha, n0, n1, n2, d, floor):
+    """(r, s0, s1, s2, depth): r the ball's depth rho - |C| (less slack) if the face (unit normal n,
+    offset d) is certified to it by the ball segment about the ball's own deepest normal s = -C / |C|
+    (the hull of B(C, rho)'s cap of normals within alpha of s), else -inf where r would not exceed
+    ``floor``, or the segment does not reach.
+
+    For a normal v of the face's cone, D's support is at least d / (n.v) (the ray through the
+    face), which is r or more where angle(v, n) >= gamma = acos(d / r); the other normals lie within
+    Phi = angle(n, s) + gamma of s, and there the segment's support is exactly
+    beta(phi) = rho cos(max(0, phi - alpha)) - |C| cos(phi) at phi = angle(v, s), at least
+    min(beta(0), beta(Phi)): beta rises on [0, alpha] and is one sinusoid on [alpha, pi / 2], whose
+    least value on an interval lies at an end. So the face holds r where Phi <= pi / 2 and
+    beta(Phi) >= r. At a depth d, a segment of rim radius l holds the normals within about 2 l / d
+    of s: far wider than the segment's own cap of normals (about 1e-3 rad at R = 2 m), where the
+    ball beyond the face would have to lie inside the segment, which is about 1e-6 m thick."""
+    r, cn, s0, s1, s2, cphi, sphi, depth = _support_lift(C, rho, n0, n1, n2, d, floor)
+    if r == -math.inf or not _beta_holds(rho, cn, cphi, sphi, cos_alpha, r):
         return -math.inf, 0.0, 0.0, 0.0, -math.inf
-    uc = u0 * C0 + u1 * C1 + u2 * C2
-    r = min(depth, halfspace_reach(n0, n1, n2, d, u0, u1, u2, uc + rho * cos_alpha + SLACK * scale))
-    return r, -C0 / cn, -C1 / cn, -C2 / cn, depth
+    return r, s0, s1, s2, depth
 
 
 @kernel
@@ -264,19 +316,42 @@ def _same(a, b):
     return a[0] == b[0] and a[1] == b[1] and a[2] == b[2]
 
 
+@kernel(inline="always")
+def may_certify(pair, sides, work, iw, face, first):
+    """Whether face_certificate could lift the face: a deepest set is kept, or a corner from ``first`` on
+    has a big sphere on a certifying side, or a torus against a polytope. (Inlined into the EPA, so
+    that the faces with neither, about three in five of kuka_link_4's STP-STP tries, skip the call.)"""
+    if work[EPA_ROW + EPA_SET, 0] != 0.0:
+        return True
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    for ci in range(3):
+        v = iw[at(EPA_IOFF + EPA_CORNERS + 3 * face + ci)]
+        if v < first:
+            continue
+        if sides & 1:
+            p = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v)]
+            if p >= iA[IDX_V] and (p < iA[IDX_V] + iA[IDX_F] or kB == POLYTOPE):
+                return True
+        if sides & 2:
+            p = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + 1)]
+            if p >= iB[IDX_V] and (p < iB[IDX_V] + iB[IDX_F] or kA == POLYTOPE):
+                return True
+    return False
+
+
 @kernel
 def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
-    """(r, u0, u1, u2, depth): the face's certified offset r, at least d, from the curved sets in D
+    """(r, u0, u1, u2, depth, core): the face's certified offset r, at least d, from the curved sets in D
     that its corners give (module docstring): for each corner from ``first`` on (the run's own
     supports) whose support on an STP-BV core's side (``sides``: 1 A, 2 B, 3 both) was a big sphere,
-    that sphere's segment less each distinct point of the other side among the corners; where it was
+    that sphere's segment less the corner's own point of the other side; where it was
     a torus and the other side is a polytope, the torus's cylinder swept between two distinct points of
     the polytope among the corners. u (x's frame) and depth: the deepest normal and the depth of the
-    set that gave r (depth -inf if none did)."""
+    set that gave r (depth -inf if none did); core: the side of its STP-BV (1 A, 2 B; 0 if none)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    best, bu0, bu1, bu2, bdepth = d, 0.0, 0.0, 0.0, -math.inf
+    best, bu0, bu1, bu2, bdepth, bcore = d, 0.0, 0.0, 0.0, -math.inf, 0
     if not d > 0.0:
-        return best, bu0, bu1, bu2, bdepth
+        return best, bu0, bu1, bu2, bdepth, bcore
     kind = work[EPA_ROW + EPA_SET, 0]
     if kind != 0.0:  # the deepest set found so far first: it holds for any face
         row = EPA_ROW + EPA_SET
@@ -290,10 +365,10 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
                                                   (work[row + 5, 0], work[row + 5, 1], work[row + 5, 2]), p3,
                                                   sgn * n0, sgn * n1, sgn * n2, d, best)
         else:
-            r, u0, u1, u2, depth = ball_segment_reach(p1, work[row + 1, 3], p2, work[row + 2, 3], sgn * n0, sgn * n1,
+            r, u0, u1, u2, depth = ball_segment_reach(p1, work[row + 1, 3], work[row + 2, 3], sgn * n0, sgn * n1,
                                                       sgn * n2, d, best)
         if r > best:
-            best, bu0, bu1, bu2, bdepth = r, sgn * u0, sgn * u1, sgn * u2, depth
+            best, bu0, bu1, bu2, bdepth, bcore = r, sgn * u0, sgn * u1, sgn * u2, depth, 1 if sgn > 0.0 else 2
     corners = (iw[at(EPA_IOFF + EPA_CORNERS + 3 * face)], iw[at(EPA_IOFF + EPA_CORNERS + 3 * face + 1)],
                iw[at(EPA_IOFF + EPA_CORNERS + 3 * face + 2)])
     for side in (STP_IS_A, STP_IS_B):
@@ -316,34 +391,39 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
             if v < first:
                 continue
             p = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + col)]
-            if (ci >= 1 and corners[0] >= first and iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[0] + col)] == p) or (
-                    ci == 2 and corners[1] >= first and iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[1] + col)] == p):
-                continue  # a patch already tried
             if V <= p < V + F:
-                # the sphere's cap of normals about the face's, in the STP-BV's frame
-                l0, l1, l2 = z0, z1, z2
-                if side == STP_IS_B:
-                    l0 = R[0, 0] * z0 + R[1, 0] * z1 + R[2, 0] * z2
-                    l1 = R[0, 1] * z0 + R[1, 1] * z1 + R[2, 1] * z2
-                    l2 = R[0, 2] * z0 + R[1, 2] * z1 + R[2, 2] * z2
-                c0, c1, c2, ca = big_sphere_cap(stp_f, stp_i, p, l0, l1, l2)
-                if not ca < 1.0:
-                    continue
+                # the sphere's segment less this corner's own point of the other side: the pair whose
+                # difference the corner is (the other corners' points certified no more on kuka_link_4's
+                # overlaps, for three times the tests)
+                y = ya if ci == 0 else (yb if ci == 1 else yc)
+                k0 = F_VERTICES + 3 * V + 3 * (p - V)
+                c0, c1, c2 = stp_f[at(k0)], stp_f[at(k0 + 1)], stp_f[at(k0 + 2)]
                 if side == STP_IS_B:
                     c0, c1, c2 = (R[0, 0] * c0 + R[0, 1] * c1 + R[0, 2] * c2 + t[0],
                                   R[1, 0] * c0 + R[1, 1] * c1 + R[1, 2] * c2 + t[1],
                                   R[2, 0] * c0 + R[2, 1] * c1 + R[2, 2] * c2 + t[2])
-                for k in range(3):
-                    y = ya if k == 0 else (yb if k == 1 else yc)
-                    if (k >= 1 and _same(y, ya)) or (k == 2 and _same(y, yb)):
-                        continue
-                    C = (c0 - y[0], c1 - y[1], c2 - y[2])
-                    r, u0, u1, u2, depth = ball_segment_reach(C, rho, (z0, z1, z2), ca, z0, z1, z2, d, best)
-                    if r > best:
-                        best, bu0, bu1, bu2, bdepth = r, sgn * u0, sgn * u1, sgn * u2, depth
-                        if depth > work[EPA_ROW + EPA_SET, 2]:
-                            _keep_set(work, 2.0, sgn, depth, C, rho, (z0, z1, z2), ca, (0.0, 0.0, 0.0), y, y)
-            elif p >= V + F and polytope_other:
+                C = (c0 - y[0], c1 - y[1], c2 - y[2])
+                r, cn, s0, s1, s2, cphi, sphi, depth = _support_lift(C, rho, z0, z1, z2, d, best)
+                if r == -math.inf:
+                    continue
+                # the sphere's cap of normals about s, in the STP-BV's frame (z = s - y: the core's
+                # normal is s itself)
+                l0, l1, l2 = s0, s1, s2
+                if side == STP_IS_B:
+                    l0 = R[0, 0] * s0 + R[1, 0] * s1 + R[2, 0] * s2
+                    l1 = R[0, 1] * s0 + R[1, 1] * s1 + R[2, 1] * s2
+                    l2 = R[0, 2] * s0 + R[1, 2] * s1 + R[2, 2] * s2
+                ca = big_sphere_cap(stp_f, stp_i, p, l0, l1, l2)[3]
+                if not _beta_holds(rho, cn, cphi, sphi, ca, r):
+                    continue
+                best, bu0, bu1, bu2, bdepth, bcore = r, sgn * s0, sgn * s1, sgn * s2, depth, 1 if sgn > 0.0 else 2
+                if depth > work[EPA_ROW + EPA_SET, 2]:
+                    _keep_set(work, 2.0, sgn, depth, C, rho, (s0, s1, s2), ca, (0.0, 0.0, 0.0), y, y)
+                continue
+            if (ci >= 1 and corners[0] >= first and iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[0] + col)] == p) or (
+                    ci == 2 and corners[1] >= first and iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[1] + col)] == p):
+                continue  # a torus already tried
+            if p >= V + F and polytope_other:
                 m0, m1, m2, e0, e1, e2, a = _torus(stp_f, stp_i, p, side, R, t)
                 for k in range(3):  # the sweep between two corners' distinct points
                     y1 = ya if k == 0 else (yb if k == 1 else yc)
@@ -354,7 +434,8 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
                     r, u0, u1, u2, depth = cylinder_reach((m0, m1, m2), (e0, e1, e2), a, rho, y1, y2, (z0, z1, z2),
                                                           z0, z1, z2, d, best)
                     if r > best:
-                        best, bu0, bu1, bu2, bdepth = r, sgn * u0, sgn * u1, sgn * u2, depth
+                        best, bu0, bu1, bu2, bdepth, bcore = r, sgn * u0, sgn * u1, sgn * u2, depth, \
+                            1 if sgn > 0.0 else 2
                         if depth > work[EPA_ROW + EPA_SET, 2]:
                             _keep_set(work, 1.0, sgn, depth, (m0, m1, m2), a, (e0, e1, e2), rho, (z0, z1, z2), y1, y2)
-    return best, bu0, bu1, bu2, bdepth
+    return best, bu0, bu1, bu2, bdepth, bcore
