@@ -398,3 +398,30 @@ def test_patch_newton_converges_from_a_rough_normal_to_the_plain_descents_distan
             assert abs(oracle.support_many(u)[0] @ u - y @ u) <= 1e-9
     assert runs >= 20
     assert converged >= 0.85 * runs, (converged, runs)
+
+
+# kuka_link_4's overlaps (random_poses(20000, 0)) whose witness points once missed the signed distance along
+# the normal by up to 6.5e-4 m: the EPA's last face lifted by a curved set, or beside one, left its clamped
+# projection or a bound it no longer carried
+WITNESS_POSES = (374, 1917, 3581, 3757, 4399, 4975, 10016, 13182, 15101)
+
+
+def test_signed_witnesses_span_the_distance_along_the_normal_and_touch_the_polytope(link4):
+    """point_b - point_a = distance * normal, and the polytope's point lies on its own support plane along
+    the normal (the brute-force maximum over its vertices), on overlaps whose EPA ends on curved sets."""
+    V = np.asarray(link4.vertices)
+    stp = STPBV.from_points(V, 0.005, 2.0)
+    pa, pb = random_poses(20000, 0)
+    idx = list(WITNESS_POSES)
+    for A, B, pose_a, pose_b, polytope_is_b in ((stp, link4, pa[idx], pb[idx], True),
+                                                 (link4, stp, pa[idx], pb[idx], False)):
+        r = spq.distances(A, B, pose_a, pose_b, signed=True)
+        assert (r.status == "overlapping").all()
+        gap = r.point_b - r.point_a - r.distance[:, None] * r.normal
+        assert np.abs(gap).max() <= 1e-12
+        for i in range(len(idx)):
+            T = pose_b[i] if polytope_is_b else pose_a[i]
+            n = -r.normal[i] if polytope_is_b else r.normal[i]  # outward from the polytope at its point
+            point = r.point_b[i] if polytope_is_b else r.point_a[i]
+            world = V @ T[:3, :3].T + T[:3, 3]
+            assert abs(point @ n - (world @ n).max()) <= 1e-9

@@ -788,6 +788,15 @@ def _witness(work, iw, f, out):
     out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2
 
 
+@kernel(inline="always")
+def _off_the_bound(out, sd, tol_abs):
+    """Whether out's witness points, B's less A's, miss sd times the normal by more than tol_abs."""
+    g = 0.0
+    for c in range(3):
+        g = max(g, abs(out[OUT_POINT_B + c] - out[OUT_POINT_A + c] - sd * out[OUT_NORMAL + c]))
+    return g > tol_abs
+
+
 @kernel
 def _best_witness(work, sd, out):
     """Witness points and normal of the exact deepest support kept (by _exact_deepest, or along a
@@ -1027,7 +1036,11 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             iw[EPA_IOFF + EPA_CAPS] = 1
         row = at(EPA_ROW + EPA_PLANES + f)
         h = _support_inline(pair, work[row, 0], work[row, 1], work[row, 2], warm, work)
-        lower = max(lower, -h)
+        if -h > lower:
+            lower = -h
+            if sides != 0:  # the support pair that bounds the depth: a lifted last face's witness
+                keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], work[row, 0], work[row, 1],
+                          work[row, 2], 1 if sides == 3 else sides)
         if bounds_closed(upper, lower, tol_abs, tol_rel):
             closed = True
             break
@@ -1085,10 +1098,22 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = work[row, 0], work[row, 1], work[row, 2]
         return EPA_OUTSIDE, closed, upper, lower, it, nv, top
     if not near:
-        if has_best(work) and certified(work, f) > work[EPA_ROW + EPA_PLANES + f, 3]:
-            _best_witness(work, upper, out)  # the face's own points would miss the certified offset
-        else:
+        # the face's own points miss the bound where it was lifted, where an expanded lifted face left it
+        # below the bound (upper keeps the least offset's best), or where the origin's projection falls
+        # off it beside a lifted neighbour (its weights clamped): then the support pair along the
+        # normal whose support bounds the depth within the tolerance (kept with every bound it set)
+        row = at(EPA_ROW + EPA_PLANES + f)
+        off_f = work[row, 3]
+        best = certified(work, f) > off_f or (sides != 0 and upper < -off_f)
+        if not best:
             _witness(work, iw, f, out)
+            best = sides != 0 and _off_the_bound(out, upper, tol_abs)
+        if best:
+            if not has_best(work):
+                _support_inline(pair, work[row, 0], work[row, 1], work[row, 2], warm, work)
+                keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], work[row, 0], work[row, 1],
+                          work[row, 2], 1 if sides == 3 or sides == 0 else sides)
+            _best_witness(work, upper, out)
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper
     out[OUT_LOWER] = min(lower, upper)  # rounding may cross them by an ulp
