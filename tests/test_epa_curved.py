@@ -2,7 +2,9 @@
 every point sampled from the certified cap lies in the set, tested by its own definition (a point of
 the circular segment swept along the polytope's edge); every normal a ball segment must lift has its
 support, found numerically over the segment's cap (its rim sampled ever finer), at least the certified
-offset; and the bounds reach the set's depth where the face's normal is the deepest one."""
+offset; every normal two tori must lift has their spindles' support, found numerically over the torus
+patches, at least the certified offset, and their bound lies below their arcs' sampled support at every
+angle; and the bounds reach the set's depth where the face's normal is the deepest one."""
 
 import math
 
@@ -10,7 +12,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from spq.kernels.epa_curved import ball_segment_reach, cylinder_reach, halfspace_reach
+from scipy.optimize import minimize
+
+from spq.kernels.epa_curved import _beta, ball_segment_reach, cylinder_reach, halfspace_reach, torus_pair_lift, torus_pair_set
 
 RHO = 2.0
 
@@ -182,3 +186,169 @@ def test_halfspace_reach_is_the_largest_cap_on_the_planes_side(seed):
         q = -_unit(l - (l @ n) * n)
         bigger = r * (1 + 1e-6) + 1e-9
         assert (d * n + math.sqrt(bigger ** 2 - d ** 2) * q) @ l < beta
+
+
+def _spindle_support(m, e, a, V):
+    """max of x.v over the torus patch of edge (m, e) at ball radius RHO (its points m - a w + RHO (cos tau w +
+    sin tau e), w any unit across e, |tau| <= t0 with cos t0 = a / RHO), for each unit row v: w along v's part
+    across e is best for every tau (the coefficient RHO cos tau - a is >= 0), and tau is searched on a grid of
+    4001 then twice more about the best (the last spacing about 1e-11 rad)."""
+    V = np.atleast_2d(V)
+    x = V @ e
+    p = np.linalg.norm(V - x[:, None] * e, axis=1)
+    t0 = math.acos(a / RHO)
+    centre, half = np.zeros(len(V)), t0
+    for _ in range(3):
+        t = np.clip(centre[:, None] + np.linspace(-half, half, 4001)[None, :], -t0, t0)
+        f = (RHO * np.cos(t) - a) * p[:, None] + RHO * np.sin(t) * x[:, None]
+        k = np.argmax(f, axis=1)
+        best = f[np.arange(len(V)), k]
+        centre, half = t[np.arange(len(V)), k], 2.0 * half / 4000
+    return V @ m + best
+
+
+def _tori_support(A, B, V):
+    """The support of spindle A less spindle B (each (m, e, a)) along the unit rows of V."""
+    V = np.atleast_2d(V)
+    return _spindle_support(*A, V) + _spindle_support(*B, -V)
+
+
+def _crossing_tori(rng, s, depth, cos_planes, lat_a, lat_b):
+    """Tori A and B (m, e, a) whose difference's support point along the unit s is depth s (so that s is its
+    deepest normal), their arcs through s at latitudes lat (fractions of their half-angles), the arcs'
+    planes at angle acos(cos_planes); edges 2 to 20 cm."""
+    q = _unit(np.cross(s, rng.normal(size=3)))
+    q2 = math.sqrt(1.0 - cos_planes ** 2) * np.cross(s, q) + cos_planes * q
+    out = []
+    for side, lat, qq in ((1.0, lat_a, q), (-1.0, lat_b, q2)):
+        L = rng.uniform(0.02, 0.2)
+        a = math.sqrt(RHO ** 2 - (L / 2) ** 2)
+        tau = lat * math.acos(a / RHO)
+        e = math.sin(tau) * side * s + math.cos(tau) * qq  # e.(side s) = sin tau
+        out.append((e, a, tau))
+    (eA, aA, tA), (eB, aB, tB) = out
+    mB = rng.normal(size=3) * 0.05
+    wB = _unit(-s - (-s @ eB) * eB)
+    cB = mB - aB * wB
+    wA = _unit(s - (s @ eA) * eA)
+    cA = depth * s + cB - 2.0 * RHO * s  # (cA + RHO s) - (cB - RHO s) = depth s
+    return (cA + aA * wA, eA, aA), (mB, eB, aB)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), tilt=st.sampled_from([0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2]),
+       below=st.sampled_from([1e-8, 1e-6, 1e-5, 1e-4, 1e-3]), cos_planes=st.sampled_from([0.0, 0.5, 0.9, 0.99]),
+       steps=st.sampled_from([0, 2]))
+def test_torus_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, below, cos_planes, steps):
+    """Two cores' tori crossing: where a face is certified to r, every normal within gamma = acos(d / r) of its
+    own has the tori's support, found numerically over their patches, at least r (sampled over that cap, and
+    its least value searched from the deepest normal and from the worst sample). The bound is taken about the
+    face's normal itself (no Newton step: the sets' deepest normal lies off it) or about the deepest normal
+    found by two steps; with these, where the face's cap lies within both arcs, it is certified to the depth."""
+    rng = np.random.default_rng(seed)
+    s = _unit(rng.normal(size=3))
+    depth = rng.uniform(0.002, 0.1)
+    A, B = _crossing_tori(rng, s, depth, cos_planes, rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))
+    assert abs(_tori_support(A, B, s)[0] - depth) < 1e-12
+    n = _unit(s + rng.normal(size=3) * tilt)
+    d = depth * (n @ s) * (1.0 - below)
+    k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2], RHO,
+                                         n[0], n[1], n[2], steps)
+    if steps == 2 and cos_planes <= 0.5 and tilt <= 1e-3:  # (along nearly parallel edges, or from farther, two
+        # steps may fail or stop short)
+        assert np.linalg.norm(np.array(k[:3]) - s) < 1e-7  # they found the deepest normal
+        assert depth - 3e-12 <= set_depth <= depth  # (less the slack for rounding)
+    if set_depth == -math.inf:
+        return
+    r = torus_pair_lift(k, RHO, RHO, set_depth, slack, n[0], n[1], n[2], d, d)
+    # the face's cap within both arcs (their ends b from s) and across crossing ones: certified to the depth
+    rooms = [math.acos(T[2] / RHO) - abs(math.asin(np.clip(T[1] @ (sg * s), -1, 1))) for T, sg in ((A, 1), (B, -1))]
+    Phi = math.acos(np.clip(n @ s, -1, 1)) + math.acos(d / depth)
+    if steps == 2 and Phi < min(rooms) and cos_planes <= 0.5:
+        assert r >= depth - 2e-11  # (the slack for rounding: 1e-12 of the scale, about 12 m)
+    if r == -math.inf:
+        return
+    assert r > d
+    gamma = math.acos(min(d / r, 1.0))
+    V = _normals_near(rng, n, gamma, s)
+    V /= np.linalg.norm(V, axis=1)[:, None]
+    H = _tori_support(A, B, V)
+    assert (H >= r - 1e-13).all()
+    # the least value over the cap, searched (the cap's normals as n + x q1 + y q2, |(x, y)| <= tan gamma)
+    q1 = _unit(np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]))
+    q2 = np.cross(n, q1)
+    lim = math.tan(gamma)
+
+    def h(xy):
+        x, y = xy
+        rr = math.hypot(x, y)
+        if rr > lim:
+            x, y = x * lim / rr, y * lim / rr
+        return _tori_support(A, B, _unit(n + x * q1 + y * q2))[0]
+
+    worst = V[np.argmin(H)]
+    starts = [(s @ q1) / (s @ n), (s @ q2) / (s @ n)], [(worst @ q1) / (worst @ n), (worst @ q2) / (worst @ n)]
+    for x0 in starts:
+        found = minimize(h, x0, method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 400})
+        assert found.fun >= r - 1e-13
+
+
+def test_torus_pair_lift_reaches_faces_well_below_the_depth_and_refuses_parallel_edges():
+    """Crossing edges (arcs' planes at 60 degrees): a face 1e-5 of the 5 cm depth below it, tilted 1e-3 rad,
+    is certified to the depth; nearly parallel edges (planes within 8 degrees) give no lift there."""
+    rng = np.random.default_rng(3)
+    s = _unit(np.array([0.2, 0.7, -0.4]))
+    depth = 0.05
+    for cos_planes, lifted in ((0.5, True), (0.99, False)):
+        A, B = _crossing_tori(rng, s, depth, cos_planes, 0.1, -0.2)
+        n = _unit(s + 1e-3 * _unit(np.cross(s, [0.0, 0.0, 1.0])))
+        d = depth * (n @ s) * (1.0 - 1e-5)
+        k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2],
+                                             RHO, n[0], n[1], n[2], 2)
+        r = torus_pair_lift(k, RHO, RHO, set_depth, slack, n[0], n[1], n[2], d, d)
+        assert (r >= depth - 2e-11) if lifted else (r < depth - 1e-6)
+
+
+def _arc_set_support(T, s, side, V):
+    """max of x.v over side * (c + RHO G), G the arc of unit normals of torus T = (m, e, a) in the plane of e
+    and side * s (|tau| <= t0 about w, the unit part of side * s across e; c = m - a w), for each row v: its
+    points sampled at 4001 latitudes, then twice more about the best."""
+    m, e, a = T
+    u = side * s
+    w = _unit(u - (u @ e) * e)
+    c = m - a * w
+    t0 = math.acos(a / RHO)
+    V = np.atleast_2d(V) * side
+    centre, half = np.zeros(len(V)), t0
+    for _ in range(3):
+        t = np.clip(centre[:, None] + np.linspace(-half, half, 4001)[None, :], -t0, t0)
+        f = RHO * (np.cos(t) * (V @ w)[:, None] + np.sin(t) * (V @ e)[:, None])
+        k = np.argmax(f, axis=1)
+        best = f[np.arange(len(V)), k]
+        centre, half = t[np.arange(len(V)), k], 2.0 * half / 4000
+    return V @ c + best
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), tilt=st.sampled_from([0.0, 1e-4, 1e-3, 1e-2]),
+       cos_planes=st.sampled_from([0.0, 0.5, 0.9]), steps=st.sampled_from([0, 2]))
+def test_torus_pair_bound_lies_below_the_arcs_support_at_every_angle(seed, tilt, cos_planes, steps):
+    """beta(phi), the bound torus_pair_lift minimises, is at most the support of K = (A's arc) - (B's arc)
+    (the arcs in the planes of their axes and s, their points sampled) along every normal phi from s, out to
+    0.3 rad: past the arcs' ends, across their planes and off K's deepest normal."""
+    rng = np.random.default_rng(seed)
+    s_true = _unit(rng.normal(size=3))
+    A, B = _crossing_tori(rng, s_true, rng.uniform(0.002, 0.1), cos_planes, rng.uniform(-0.95, 0.95),
+                          rng.uniform(-0.95, 0.95))
+    n = _unit(s_true + rng.normal(size=3) * tilt)
+    k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2], RHO,
+                                         n[0], n[1], n[2], steps)
+    if set_depth == -math.inf:
+        return
+    s = np.array(k[:3])
+    V = np.vstack([_normals_near(rng, s, g, n, count=60) for g in (1e-4, 1e-3, 1e-2, 0.05, 0.3)])
+    V /= np.linalg.norm(V, axis=1)[:, None]
+    hK = _arc_set_support(A, s, 1.0, V) + _arc_set_support(B, s, -1.0, V)
+    phi = np.arccos(np.clip(V @ s, -1.0, 1.0))
+    beta = np.array([_beta(k, RHO, RHO, p, math.cos(p), math.sin(p))[0] for p in phi])
+    assert (beta - slack <= hK + 1e-13).all()

@@ -29,6 +29,12 @@ Curved sets inside D close the bound instead:
   normal, and it certifies a face by its support, not by holding a cap (ball_segment_reach, below).
   (epa_caps does the same between two spheres, once a run is long; here the other side's point needs
   no region of its own.)
+- Between two cores, a torus of each: each spindle holds its meridian arcs, so D holds the difference
+  of A's arc and B's in the planes of their axes and a normal s. About s, D's support is bounded below
+  in closed form at every angle from s (torus_pair_set: the arcs' radius is lost only across their
+  planes, and past their ends), s found by Newton's steps; a face is certified where that bound holds
+  over its cone (torus_pair_lift). On kuka_link_4's 2,036 overlapping STP-STP poses (two fifths of
+  them end between two tori) the iterations fall from 36.1 to 27.4 (docs/notes/speed-45.md, stop 95).
 
 A face F (unit normal n, offset d) is certified to offset r when D's support is at least r along
 every normal of its cone (the EPA's bound is then the least certified offset). The cylinder does it
@@ -57,7 +63,7 @@ from __future__ import annotations
 import math
 
 from spq.kernels.epa_caps import CAP_SLACK
-from spq.kernels.epa_layout import EPA_CERTIFIED, EPA_CORNERS, EPA_FEATURES, EPA_PA, EPA_PB, EPA_SET
+from spq.kernels.epa_layout import EPA_CERTIFIED, EPA_CORNERS, EPA_FEATURES, EPA_PA, EPA_PB, EPA_SET, EPA_TORI
 from spq.kernels.gjk import EPA_IOFF, EPA_ROW
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
@@ -72,8 +78,8 @@ SLACK = 1e-13  # relative: the sets' radii are taken this much (of the scale) sm
 @kernel(inline="always")
 def certifying_sides(kA, kB):
     """1 where A is an STP-BV's core and B a polytope, 2 the other way round, 3 for two cores (each
-    side's big spheres against the other's points; the cylinders need a polytope), else 0 (no curved
-    sets).
+    side's big spheres against the other's points, and a torus of each; the cylinders need a
+    polytope), else 0 (no curved sets).
 
     Between two cores the ball segments that held a cap of B(0, r) cut kuka_link_4's overlaps'
     iterations 43.6 -> 38.5 but cost more than that saved (11.96 -> 12.69 us a pose); by their support
@@ -230,6 +236,7 @@ def big_sphere_cap(f, ix, p, u0, u1, u2):
 
 
 SUPPORT_SLACK = 1e-12  # relative: taken off a support test's lift, for the rounding of its angles
+NEWTON_STEPS = 2  # torus_pair_set's steps toward two tori's deepest normal from a face's
 
 
 @kernel(inline="always")
@@ -290,10 +297,172 @@ def ball_segment_reach(C, rho, cos_alpha, n0, n1, n2, d, floor):
     return r, s0, s1, s2, depth
 
 
+@kernel(inline="always")
+def _arc_about(m0, m1, m2, e0, e1, e2, a, rho, u0, u1, u2):
+    """The meridian arc of a core's torus (centre m, unit axis e, circle radius a, ball radius rho)
+    whose plane holds the unit normal u: (its centre c = m - a w, b = its half-angle t0 less u's
+    angle from the arc's middle, and e x u with its length), or b = -inf where u lies along e or the
+    torus is degenerate. The arc's unit normals are cos(tau) w + sin(tau) e, |tau| <= t0 (cos t0 = a /
+    rho), so u is one of them where b >= 0."""
+    ue = u0 * e0 + u1 * e1 + u2 * e2
+    w0, w1, w2 = u0 - ue * e0, u1 - ue * e1, u2 - ue * e2
+    wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if not (wn > 1e-9 and 0.0 <= a < rho):
+        return 0.0, 0.0, 0.0, -math.inf, 0.0, 0.0, 0.0
+    w0, w1, w2 = w0 / wn, w1 / wn, w2 / wn
+    b = math.acos(a / rho) - math.atan2(abs(ue), wn)
+    # e x u = e x (wn w): the plane's normal, of length wn
+    return m0 - a * w0, m1 - a * w1, m2 - a * w2, b, e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
+
+
+@kernel
+def torus_pair_set(mA, eA, aA, rhoA, mB, eB, aB, rhoB, n0, n1, n2, steps):
+    """A lower bound on D's support about the deepest normal of two cores' tori, A's (centre m, unit
+    axis e, circle radius a, ball radius rho) less B's (in A's frame), from a unit normal n near it
+    (``steps`` Newton steps; with none, about n itself):
+    (k, depth, slack), k = (s0, s1, s2, A0, B0, bA, bB, L, cos bA, sin bA, cos bB, sin bB) the terms of
+    beta below (torus_pair_lift), depth = beta(0) less rounding slack, or -inf where the arcs or
+    Newton's steps fail.
+
+    Each torus's spindle holds its meridian arcs, so D holds K = (c_A + rho_A G_A) - (c_B + rho_B G_B),
+    G_A the great-circle arc of A's unit normals in the plane of e_A and a unit s, G_B B's in the plane
+    of e_B and -s (_arc_about), whose support along a unit v is C.v + rho_A |P_A v| cos(zeta_A) + rho_B
+    |P_B v| cos(zeta_B), C = c_A - c_B, P the projection on the arc's plane and zeta its angle past the
+    arc's end. At an angle phi from s in any direction t: C.v >= A0 cos phi - B0 sin phi (A0 = C.s, B0 =
+    |C - A0 s|); the in-plane angle moves by at most phi, so zeta_X <= max(0, phi - b_X); and |P_X v|^2 =
+    1 - sin^2(phi) (nu_X.t)^2 with the planes' unit normals nu_X across s, so that rho_A |P_A v| + rho_B
+    |P_B v| >= rho_A + rho_B - L (1 - cos phi), L the greater eigenvalue of rho_A nu_A nu_A^T + rho_B
+    nu_B nu_B^T (sqrt(1 - x) >= 1 - x / (1 + cos phi) for x <= sin^2 phi). So D's support at angle phi
+    from s is at least beta(phi) = A0 cos phi - B0 sin phi + rho_A cos zeta_A + rho_B cos zeta_B - L (1 -
+    cos phi).
+
+    s is K's deepest normal, found by Newton's steps from n on the sphere (two in the EPA) (the tangential part of C
+    is K's gradient there, rho_A t_A t_A^T + rho_B t_B t_B^T - h its Hessian, t the arcs' tangents):
+    about n itself, B0 sin phi would cost about rho times the square of n's error, far more than the
+    tolerance. Across the arcs beta grows as (rho (1 - c) - depth) phi^2 / 2 (c = |nu_A . nu_B|), so
+    it reaches faces far below the depth where the edges cross; along nearly parallel edges it reaches
+    none."""
+    fail = ((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), -math.inf, 0.0)
+    s0, s1, s2 = n0, n1, n2
+    for k in range(steps + 1):
+        cA0, cA1, cA2, bA, xA0, xA1, xA2 = _arc_about(mA[0], mA[1], mA[2], eA[0], eA[1], eA[2], aA, rhoA, s0, s1, s2)
+        cB0, cB1, cB2, bB, xB0, xB1, xB2 = _arc_about(mB[0], mB[1], mB[2], eB[0], eB[1], eB[2], aB, rhoB,
+                                                      -s0, -s1, -s2)
+        if not (bA > -0.5 and bB > -0.5):  # (-inf: no arc; far past an end: no use, and zeta < pi / 2)
+            return fail
+        C0, C1, C2 = cA0 - cB0, cA1 - cB1, cA2 - cB2
+        A0 = C0 * s0 + C1 * s1 + C2 * s2
+        p0, p1, p2 = C0 - A0 * s0, C1 - A0 * s1, C2 - A0 * s2
+        xa = math.sqrt(xA0 * xA0 + xA1 * xA1 + xA2 * xA2)
+        xb = math.sqrt(xB0 * xB0 + xB1 * xB1 + xB2 * xB2)
+        xA0, xA1, xA2, xB0, xB1, xB2 = xA0 / xa, xA1 / xa, xA2 / xa, xB0 / xb, xB1 / xb, xB2 / xb
+        if k == steps:
+            break
+        # tangent basis (t_A, nu_A) at s; t_X = nu_X x s
+        t0, t1, t2 = xA1 * s2 - xA2 * s1, xA2 * s0 - xA0 * s2, xA0 * s1 - xA1 * s0
+        u0, u1, u2 = xB1 * s2 - xB2 * s1, xB2 * s0 - xB0 * s2, xB0 * s1 - xB1 * s0
+        ga = u0 * t0 + u1 * t1 + u2 * t2
+        gb = u0 * xA0 + u1 * xA1 + u2 * xA2
+        h = A0 + rhoA + rhoB
+        M11, M12, M22 = rhoA + rhoB * ga * ga - h, rhoB * ga * gb, rhoB * gb * gb - h
+        det = M11 * M22 - M12 * M12
+        if not (det > 0.0 and M11 > 0.0):
+            return fail
+        c1 = p0 * t0 + p1 * t1 + p2 * t2
+        c2 = p0 * xA0 + p1 * xA1 + p2 * xA2
+        y1 = -(M22 * c1 - M12 * c2) / det
+        y2 = -(M11 * c2 - M12 * c1) / det
+        s0, s1, s2 = s0 + y1 * t0 + y2 * xA0, s1 + y1 * t1 + y2 * xA1, s2 + y1 * t2 + y2 * xA2
+        sn = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        s0, s1, s2 = s0 / sn, s1 / sn, s2 / sn
+    B0 = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    ca = min(1.0, abs(xA0 * xB0 + xA1 * xB1 + xA2 * xB2))
+    L = 0.5 * (rhoA + rhoB + math.sqrt((rhoA - rhoB) ** 2 + 4.0 * rhoA * rhoB * ca * ca))
+    scale = rhoA + rhoB + abs(C0) + abs(C1) + abs(C2)
+    depth = A0 + rhoA * math.cos(max(0.0, -bA)) + rhoB * math.cos(max(0.0, -bB)) - SLACK * scale
+    k = (s0, s1, s2, A0, B0, bA, bB, L, math.cos(bA), math.sin(bA), math.cos(bB), math.sin(bB))
+    return k, depth, SUPPORT_SLACK * scale
+
+
+@kernel(inline="always")
+def _beta(k, rhoA, rhoB, phi, c, s):
+    """(beta, its derivative) at angle phi (cosine c, sine s): the piece of torus_pair_set's bound that
+    holds there, k + P cos + Q sin."""
+    s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
+    K, P, Q = -L, A0 + L, -B0
+    if phi > bA:
+        P += rhoA * cbA
+        Q += rhoA * sbA
+    else:
+        K += rhoA
+    if phi > bB:
+        P += rhoB * cbB
+        Q += rhoB * sbB
+    else:
+        K += rhoB
+    return K + P * c + Q * s, Q * c - P * s, K, P, Q
+
+
+@kernel
+def torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor):
+    """The offset r to which a face (unit normal n, offset d > 0) is certified by the tori's bound
+    (torus_pair_set: k, depth, slack), or -inf where that is not above d and ``floor``.
+
+    The ray through the face gives D's support r or more beyond gamma = acos(d / r) from n, and the
+    rest of the face's cone lies within Phi = angle(n, s) + gamma of s. beta is one sinusoid between
+    the arcs' ends (zeta_X = 0 before b_X, phi - b_X after), so its least value on each piece is at an
+    end or at a trough, where its derivative turns from negative to positive (a piece is shorter than
+    pi). So the face holds r = min beta over [0, angle(n, s) + acos(d / depth)] (a smaller r only
+    narrows the range)."""
+    fail = -math.inf
+    lim = max(d, floor) + slack
+    s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
+    if not (depth > lim and d > 0.0):
+        return fail
+    cp = n0 * s0 + n1 * s1 + n2 * s2
+    q0, q1, q2 = n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0
+    sp = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+    cg = d / depth
+    sg = math.sqrt((depth - d) * (depth + d)) / depth
+    cF, sF = cp * cg - sp * sg, sp * cg + cp * sg  # Phi = psi + gamma
+    if not (cp > 0.0 and cF > 0.8775):  # Phi < 0.5
+        return fail
+    Phi = math.atan2(sF, cF)
+    least, dhi, K, P, Q = _beta(k, rhoA, rhoB, Phi, cF, sF)
+    if not least > lim:  # (most refusals: the far end falls short)
+        return fail
+    # the cuts between pieces, ascending: 0, the arcs' ends within (0, Phi), Phi
+    a1, c1, z1 = (bA, cbA, sbA) if bA < bB else (bB, cbB, sbB)
+    a2, c2, z2 = (bB, cbB, sbB) if bA < bB else (bA, cbA, sbA)
+    lo, clo, slo = 0.0, 1.0, 0.0
+    for i in range(3):
+        if i == 0:
+            hi, chi, shi = a1, c1, z1
+        elif i == 1:
+            hi, chi, shi = a2, c2, z2
+        else:
+            hi, chi, shi = Phi, cF, sF
+        if not hi > lo:
+            continue
+        if hi > Phi:
+            hi, chi, shi = Phi, cF, sF
+        v_lo, d_lo, K, P, Q = _beta(k, rhoA, rhoB, 0.5 * (lo + hi), clo, slo)
+        least = min(least, v_lo)
+        if d_lo < 0.0 and Q * chi - P * shi > 0.0:  # a trough inside the piece
+            least = min(least, K - math.sqrt(P * P + Q * Q))
+        lo, clo, slo = hi, chi, shi
+        if lo >= Phi:
+            break
+    r = least - slack
+    if r > d and r > floor:
+        return r
+    return fail
+
+
 @kernel
 def _keep_set(work, kind, sgn, depth, p1, s1, p2, s2, p3, y1, y2):
     """The deepest set found: a cylinder (kind 1: m, a, e, rho, azimuth, y1, y2) or a ball segment (kind 2:
-    C, rho, u, cos alpha), in z = sgn x."""
+    C, rho, u, cos alpha), in z = sgn x. (Two cores' tori, kind 3, are kept by face_certificate.)"""
     row = EPA_ROW + EPA_SET
     work[row, 0], work[row, 1], work[row, 2] = kind, sgn, depth
     for c in range(3):
@@ -309,6 +478,42 @@ def _keep_set(work, kind, sgn, depth, p1, s1, p2, s2, p3, y1, y2):
 def clear_set(work):
     work[EPA_ROW + EPA_SET, 0] = 0.0
     work[EPA_ROW + EPA_SET, 2] = -math.inf
+    work[EPA_ROW + EPA_TORI, 0] = -1.0
+
+
+@kernel(inline="always")
+def _put_tori(work, row, k):
+    """Rows row + 1 .. row + 3: a torus_pair_set bound's terms k."""
+    for c in range(4):
+        work[row + 1, c] = k[c]
+        work[row + 2, c] = k[4 + c]
+        work[row + 3, c] = k[8 + c]
+
+
+@kernel(inline="always")
+def _tori_at(work, row):
+    """The terms k of the torus_pair_set bound stored from row + 1 on (_put_tori)."""
+    return (work[row + 1, 0], work[row + 1, 1], work[row + 1, 2], work[row + 1, 3], work[row + 2, 0],
+            work[row + 2, 1], work[row + 2, 2], work[row + 2, 3], work[row + 3, 0], work[row + 3, 1],
+            work[row + 3, 2], work[row + 3, 3])
+
+
+@kernel
+def _tori_set(work, pair, p, q, n0, n1, n2):
+    """torus_pair_set for torus patches p of A and q of B about n, or the last one's (kept in EPA_TORI:
+    p, q, depth, slack, then the terms): a set depends on its face only through Newton's start, so a
+    face of the same pair reuses it."""
+    row = EPA_ROW + EPA_TORI
+    if work[row, 0] == p and work[row, 1] == q:
+        return _tori_at(work, row), work[row, 2], work[row, 3]
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    m0, m1, m2, e0, e1, e2, a = _torus(fA, iA, p, STP_IS_A, R, t)
+    g0, g1, g2, h0, h1, h2, b = _torus(fB, iB, q, STP_IS_B, R, t)
+    k, depth, slack = torus_pair_set((m0, m1, m2), (e0, e1, e2), a, fA[F_BIG_R] - fA[F_R], (g0, g1, g2),
+                                     (h0, h1, h2), b, fB[F_BIG_R] - fB[F_R], n0, n1, n2, NEWTON_STEPS)
+    work[row, 0], work[row, 1], work[row, 2], work[row, 3] = p, q, depth, slack
+    _put_tori(work, row, k)
+    return k, depth, slack
 
 
 @kernel(inline="always")
@@ -319,7 +524,7 @@ def _same(a, b):
 @kernel(inline="always")
 def may_certify(pair, sides, work, iw, face, first):
     """Whether face_certificate could lift the face: a deepest set is kept, or a corner from ``first`` on
-    has a big sphere on a certifying side, or a torus against a polytope. (Inlined into the EPA, so
+    has a big sphere on a certifying side, a torus against a polytope, or a torus on each of two cores. (Inlined into the EPA, so
     that the faces with neither, about three in five of kuka_link_4's STP-STP tries, skip the call.)"""
     if work[EPA_ROW + EPA_SET, 0] != 0.0:
         return True
@@ -333,9 +538,11 @@ def may_certify(pair, sides, work, iw, face, first):
             if p >= iA[IDX_V] and (p < iA[IDX_V] + iA[IDX_F] or kB == POLYTOPE):
                 return True
         if sides & 2:
-            p = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + 1)]
-            if p >= iB[IDX_V] and (p < iB[IDX_V] + iB[IDX_F] or kA == POLYTOPE):
+            q = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + 1)]
+            if q >= iB[IDX_V] and (q < iB[IDX_V] + iB[IDX_F] or kA == POLYTOPE):
                 return True
+        if sides == 3 and p >= iA[IDX_V] + iA[IDX_F] and q >= iB[IDX_V] + iB[IDX_F]:
+            return True
     return False
 
 
@@ -346,7 +553,8 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
     supports) whose support on an STP-BV core's side (``sides``: 1 A, 2 B, 3 both) was a big sphere,
     that sphere's segment less the corner's own point of the other side; where it was
     a torus and the other side is a polytope, the torus's cylinder swept between two distinct points of
-    the polytope among the corners. u (x's frame) and depth: the deepest normal and the depth of the
+    the polytope among the corners; where both of a corner's points lie on tori (two cores), their arcs'
+    bound (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's frame) and depth: the deepest normal and the depth of the
     set that gave r (depth -inf if none did); core: the side of its STP-BV (1 A, 2 B; 0 if none)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     best, bu0, bu1, bu2, bdepth, bcore = d, 0.0, 0.0, 0.0, -math.inf, 0
@@ -359,7 +567,11 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
         p1 = (work[row + 1, 0], work[row + 1, 1], work[row + 1, 2])
         p2 = (work[row + 2, 0], work[row + 2, 1], work[row + 2, 2])
         p3 = (work[row + 3, 0], work[row + 3, 1], work[row + 3, 2])
-        if kind == 1.0:
+        if kind == 3.0:
+            r = torus_pair_lift(_tori_at(work, row), fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R], work[row, 2],
+                                work[row, 3], n0, n1, n2, d, best)
+            u0, u1, u2, depth = p1[0], p1[1], p1[2], work[row, 2]
+        elif kind == 1.0:
             r, u0, u1, u2, depth = cylinder_reach(p1, p2, work[row + 1, 3], work[row + 2, 3],
                                                   (work[row + 4, 0], work[row + 4, 1], work[row + 4, 2]),
                                                   (work[row + 5, 0], work[row + 5, 1], work[row + 5, 2]), p3,
@@ -438,4 +650,32 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
                             1 if sgn > 0.0 else 2
                         if depth > work[EPA_ROW + EPA_SET, 2]:
                             _keep_set(work, 1.0, sgn, depth, (m0, m1, m2), a, (e0, e1, e2), rho, (z0, z1, z2), y1, y2)
+    if sides == 3:  # a torus of each core at the same corner: their arcs (torus_pair_reach)
+        rhoA, rhoB = fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R]
+        TA, TB = iA[IDX_V] + iA[IDX_F], iB[IDX_V] + iB[IDX_F]
+        for ci in range(3):
+            v = corners[ci]
+            if v < first:
+                continue
+            p = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v)]
+            q = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + 1)]
+            if p < TA or q < TB:
+                continue
+            if ci >= 1 and corners[0] >= first and iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[0])] == p and \
+                    iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[0] + 1)] == q:
+                continue
+            if ci == 2 and corners[1] >= first and iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[1])] == p and \
+                    iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[1] + 1)] == q:
+                continue
+            if kind == 3.0 and work[EPA_ROW + EPA_SET + 4, 0] == p and work[EPA_ROW + EPA_SET + 4, 1] == q:
+                continue  # the kept set, tried above
+            k, depth, slack = _tori_set(work, pair, p, q, n0, n1, n2)
+            r = torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, best)
+            if r > best:
+                best, bu0, bu1, bu2, bdepth, bcore = r, k[0], k[1], k[2], depth, 1
+                row = EPA_ROW + EPA_SET
+                if depth > work[row, 2]:
+                    work[row, 0], work[row, 1], work[row, 2], work[row, 3] = 3.0, 1.0, depth, slack
+                    _put_tori(work, row, k)
+                    work[row + 4, 0], work[row + 4, 1] = p, q
     return best, bu0, bu1, bu2, bdepth, bcore
