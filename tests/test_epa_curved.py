@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 from scipy.optimize import minimize
 
-from spq.kernels.epa_curved import _beta, ball_segment_reach, cylinder_reach, halfspace_reach, torus_pair_lift, torus_pair_set
+from spq.kernels.epa_curved import (_beta, ball_segment_reach, cylinder_reach, halfspace_reach, torus_pair_lift,
+                                     torus_pair_set)
 
 RHO = 2.0
 

@@ -336,10 +336,10 @@ def torus_pair_set(mA, eA, aA, rhoA, mB, eB, aB, rhoB, n0, n1, n2, steps):
     from s is at least beta(phi) = A0 cos phi - B0 sin phi + rho_A cos zeta_A + rho_B cos zeta_B - L (1 -
     cos phi).
 
-    s is K's deepest normal, found by Newton's steps from n on the sphere (two in the EPA) (the tangential part of C
-    is K's gradient there, rho_A t_A t_A^T + rho_B t_B t_B^T - h its Hessian, t the arcs' tangents):
-    about n itself, B0 sin phi would cost about rho times the square of n's error, far more than the
-    tolerance. Across the arcs beta grows as (rho (1 - c) - depth) phi^2 / 2 (c = |nu_A . nu_B|), so
+    s is K's deepest normal, found by Newton's steps from n on the sphere (NEWTON_STEPS in the EPA; the
+    tangential part of C is K's gradient there, rho_A t_A t_A^T + rho_B t_B t_B^T - h its Hessian, t
+    the arcs' tangents): about n itself, B0 sin phi would cost about rho times the square of n's error,
+    far more than the tolerance. Across the arcs beta grows as (rho (1 - c) - depth) phi^2 / 2 (c = |nu_A . nu_B|), so
     it reaches faces far below the depth where the edges cross; along nearly parallel edges it reaches
     none."""
     fail = ((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), -math.inf, 0.0)
@@ -386,8 +386,8 @@ def torus_pair_set(mA, eA, aA, rhoA, mB, eB, aB, rhoB, n0, n1, n2, steps):
 
 @kernel(inline="always")
 def _beta(k, rhoA, rhoB, phi, c, s):
-    """(beta, its derivative) at angle phi (cosine c, sine s): the piece of torus_pair_set's bound that
-    holds there, k + P cos + Q sin."""
+    """(beta, its derivative, K, P, Q) at angle phi (cosine c, sine s): the piece of torus_pair_set's
+    bound that holds there, K + P cos + Q sin."""
     s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
     K, P, Q = -L, A0 + L, -B0
     if phi > bA:
@@ -428,7 +428,7 @@ def torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor):
     if not (cp > 0.0 and cF > 0.8775):  # Phi < 0.5
         return fail
     Phi = math.atan2(sF, cF)
-    least, dhi, K, P, Q = _beta(k, rhoA, rhoB, Phi, cF, sF)
+    least = _beta(k, rhoA, rhoB, Phi, cF, sF)[0]
     if not least > lim:  # (most refusals: the far end falls short)
         return fail
     # the cuts between pieces, ascending: 0, the arcs' ends within (0, Phi), Phi
@@ -524,8 +524,9 @@ def _same(a, b):
 @kernel(inline="always")
 def may_certify(pair, sides, work, iw, face, first):
     """Whether face_certificate could lift the face: a deepest set is kept, or a corner from ``first`` on
-    has a big sphere on a certifying side, a torus against a polytope, or a torus on each of two cores. (Inlined into the EPA, so
-    that the faces with neither, about three in five of kuka_link_4's STP-STP tries, skip the call.)"""
+    has a big sphere on a certifying side, a torus against a polytope, or a torus on each of two cores.
+    (Inlined into the EPA, so that the faces with none of these skip the call: about three in five of
+    kuka_link_4's STP-STP tries before the tori's bound.)"""
     if work[EPA_ROW + EPA_SET, 0] != 0.0:
         return True
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
@@ -551,11 +552,12 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
     """(r, u0, u1, u2, depth, core): the face's certified offset r, at least d, from the curved sets in D
     that its corners give (module docstring): for each corner from ``first`` on (the run's own
     supports) whose support on an STP-BV core's side (``sides``: 1 A, 2 B, 3 both) was a big sphere,
-    that sphere's segment less the corner's own point of the other side; where it was
-    a torus and the other side is a polytope, the torus's cylinder swept between two distinct points of
-    the polytope among the corners; where both of a corner's points lie on tori (two cores), their arcs'
-    bound (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's frame) and depth: the deepest normal and the depth of the
-    set that gave r (depth -inf if none did); core: the side of its STP-BV (1 A, 2 B; 0 if none)."""
+    that sphere's segment less the corner's own point of the other side; where it was a torus and the
+    other side is a polytope, the torus's cylinder swept between two distinct points of the polytope
+    among the corners; where both of a corner's points lie on tori (two cores), their arcs' bound
+    (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's frame) and depth: the deepest
+    normal and the depth of the set that gave r (depth -inf if none did); core: the side of its STP-BV
+    (1 A, 2 B; 0 if none)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     best, bu0, bu1, bu2, bdepth, bcore = d, 0.0, 0.0, 0.0, -math.inf, 0
     if not d > 0.0:
