@@ -797,6 +797,13 @@ def _off_the_bound(out, sd, tol_abs):
     return g > tol_abs
 
 
+@kernel(inline="always")
+def _exact_side(sides):
+    """The side whose point a support pair kept for a witness takes as exact (keep_best's core): B where
+    only B is an STP-BV's core, else A (a polytope's support along the normal is as exact)."""
+    return 2 if sides == 2 else 1
+
+
 @kernel
 def _best_witness(work, sd, out):
     """Witness points and normal of the exact deepest support kept (by _exact_deepest, or along a
@@ -1040,7 +1047,7 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             lower = -h
             if sides != 0:  # the support pair that bounds the depth: a lifted last face's witness
                 keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], work[row, 0], work[row, 1],
-                          work[row, 2], 1 if sides == 3 else sides)
+                          work[row, 2], _exact_side(sides))
         if bounds_closed(upper, lower, tol_abs, tol_rel):
             closed = True
             break
@@ -1112,7 +1119,7 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             if not has_best(work):
                 _support_inline(pair, work[row, 0], work[row, 1], work[row, 2], warm, work)
                 keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], work[row, 0], work[row, 1],
-                          work[row, 2], 1 if sides == 3 or sides == 0 else sides)
+                          work[row, 2], _exact_side(sides))
             _best_witness(work, upper, out)
     out[OUT_DISTANCE] = upper
     out[OUT_UPPER] = upper

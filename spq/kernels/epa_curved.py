@@ -499,8 +499,8 @@ def _tori_at(work, row):
 
 
 @kernel
-def _tori_set(work, pair, p, q, n0, n1, n2):
-    """torus_pair_set for torus patches p of A and q of B about n, or the last one's (kept in EPA_TORI:
+def _tori_set(work, pair, p, q, rhoA, rhoB, n0, n1, n2):
+    """torus_pair_set for torus patches p of A and q of B (ball radii rho) about n, or the last one's (kept in EPA_TORI:
     p, q, depth, slack, then the terms): a set depends on its face only through Newton's start, so a
     face of the same pair reuses it."""
     row = EPA_ROW + EPA_TORI
@@ -509,8 +509,8 @@ def _tori_set(work, pair, p, q, n0, n1, n2):
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     m0, m1, m2, e0, e1, e2, a = _torus(fA, iA, p, STP_IS_A, R, t)
     g0, g1, g2, h0, h1, h2, b = _torus(fB, iB, q, STP_IS_B, R, t)
-    k, depth, slack = torus_pair_set((m0, m1, m2), (e0, e1, e2), a, fA[F_BIG_R] - fA[F_R], (g0, g1, g2),
-                                     (h0, h1, h2), b, fB[F_BIG_R] - fB[F_R], n0, n1, n2, NEWTON_STEPS)
+    k, depth, slack = torus_pair_set((m0, m1, m2), (e0, e1, e2), a, rhoA, (g0, g1, g2), (h0, h1, h2), b, rhoB,
+                                     n0, n1, n2, NEWTON_STEPS)
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = p, q, depth, slack
     _put_tori(work, row, k)
     return k, depth, slack
@@ -671,7 +671,7 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
                 continue
             if kind == 3.0 and work[EPA_ROW + EPA_SET + 4, 0] == p and work[EPA_ROW + EPA_SET + 4, 1] == q:
                 continue  # the kept set, tried above
-            k, depth, slack = _tori_set(work, pair, p, q, n0, n1, n2)
+            k, depth, slack = _tori_set(work, pair, p, q, rhoA, rhoB, n0, n1, n2)
             r = torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, best)
             if r > best:
                 best, bu0, bu1, bu2, bdepth, bcore = r, k[0], k[1], k[2], depth, 1
