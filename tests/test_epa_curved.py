@@ -118,11 +118,13 @@ def _normals_near(rng, n, gamma, toward, count=200):
     t = np.linspace(0.0, 2.0 * math.pi, count)
     rim = math.cos(gamma) * n + math.sin(gamma) * (np.cos(t)[:, None] * q1 + np.sin(t)[:, None] * q2)
     away = toward - (toward @ n) * n
-    far = [math.cos(gamma) * n - math.sin(gamma) * _unit(away)] if np.linalg.norm(away) > 1e-15 else []
+    # (where toward lies within rounding of n, away has no direction: its unit vector would not be across n)
+    far = [math.cos(gamma) * n - math.sin(gamma) * _unit(away)] if np.linalg.norm(away) > 1e-9 else []
     ang = gamma * np.sqrt(rng.uniform(0, 1, size=count))
     phi = rng.uniform(0.0, 2.0 * math.pi, size=count)
     inside = np.cos(ang)[:, None] * n + np.sin(ang)[:, None] * (np.cos(phi)[:, None] * q1 + np.sin(phi)[:, None] * q2)
-    return np.vstack([rim, inside] + ([np.array(far)] if far else []))
+    V = np.vstack([rim, inside] + ([np.array(far)] if far else []))
+    return V / np.linalg.norm(V, axis=1)[:, None]
 
 
 @settings(max_examples=60, deadline=None)
@@ -272,7 +274,6 @@ def test_torus_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, bel
     assert r > d
     gamma = math.acos(min(d / r, 1.0))
     V = _normals_near(rng, n, gamma, s)
-    V /= np.linalg.norm(V, axis=1)[:, None]
     H = _tori_support(A, B, V)
     assert (H >= r - 1e-13).all()
     # the least value over the cap, searched (the cap's normals as n + x q1 + y q2, |(x, y)| <= tan gamma)
@@ -348,7 +349,6 @@ def test_torus_pair_bound_lies_below_the_arcs_support_at_every_angle(seed, tilt,
         return
     s = np.array(k[:3])
     V = np.vstack([_normals_near(rng, s, g, n, count=60) for g in (1e-4, 1e-3, 1e-2, 0.05, 0.3)])
-    V /= np.linalg.norm(V, axis=1)[:, None]
     hK = _arc_set_support(A, s, 1.0, V) + _arc_set_support(B, s, -1.0, V)
     phi = np.arccos(np.clip(V @ s, -1.0, 1.0))
     beta = np.array([_beta(k, RHO, RHO, p, math.cos(p), math.sin(p))[0] for p in phi])
