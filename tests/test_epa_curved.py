@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize
 
 from spq.kernels.epa_curved import (_beta, ball_segment_reach, cylinder_reach, halfspace_reach, torus_pair_lift,
-                                     torus_pair_set)
+                                     torus_pair_set, with_room)
 
 RHO = 2.0
 
@@ -211,15 +211,16 @@ def _spindle_support(m, e, a, V):
 
 
 def _tori_support(A, B, V):
-    """The support of spindle A less spindle B (each (m, e, a)) along the unit rows of V."""
+    """The support of spindle (or ball) A less spindle (or ball) B (each (m, e, a)) along the unit rows of V."""
     V = np.atleast_2d(V)
-    return _spindle_support(*A, V) + _spindle_support(*B, -V)
+    return _patch_support(A, V) + _patch_support(B, -V)
 
 
-def _crossing_tori(rng, s, depth, cos_planes, lat_a, lat_b):
+def _crossing_tori(rng, s, depth, cos_planes, lat_a, lat_b, balls=(False, False)):
     """Tori A and B (m, e, a) whose difference's support point along the unit s is depth s (so that s is its
     deepest normal), their arcs through s at latitudes lat (fractions of their half-angles), the arcs'
-    planes at angle acos(cos_planes); edges 2 to 20 cm."""
+    planes at angle acos(cos_planes); edges 2 to 20 cm. A side with ``balls`` True is instead the ball of
+    radius RHO about m (e = 0, a = -1)."""
     q = _unit(np.cross(s, rng.normal(size=3)))
     q2 = math.sqrt(1.0 - cos_planes ** 2) * np.cross(s, q) + cos_planes * q
     out = []
@@ -232,32 +233,42 @@ def _crossing_tori(rng, s, depth, cos_planes, lat_a, lat_b):
     (eA, aA, tA), (eB, aB, tB) = out
     mB = rng.normal(size=3) * 0.05
     wB = _unit(-s - (-s @ eB) * eB)
-    cB = mB - aB * wB
+    cB = mB if balls[1] else mB - aB * wB
     wA = _unit(s - (s @ eA) * eA)
     cA = depth * s + cB - 2.0 * RHO * s  # (cA + RHO s) - (cB - RHO s) = depth s
-    return (cA + aA * wA, eA, aA), (mB, eB, aB)
+    A = (cA, np.zeros(3), -1.0) if balls[0] else (cA + aA * wA, eA, aA)
+    B = (mB, np.zeros(3), -1.0) if balls[1] else (mB, eB, aB)
+    return A, B
+
+
+def _patch_support(T, V):
+    """The support of a torus patch (_spindle_support) or of the ball T = (m, 0, -1) along the unit rows of V."""
+    V = np.atleast_2d(V)
+    return V @ T[0] + RHO if T[2] < 0 else _spindle_support(*T, V)
 
 
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), tilt=st.sampled_from([0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2]),
        below=st.sampled_from([1e-8, 1e-6, 1e-5, 1e-4, 1e-3]), cos_planes=st.sampled_from([0.0, 0.5, 0.9, 0.99]),
-       steps=st.sampled_from([0, 2]))
-def test_torus_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, below, cos_planes, steps):
-    """Two cores' tori crossing: where a face is certified to r, every normal within gamma = acos(d / r) of its
-    own has the tori's support, found numerically over their patches, at least r (sampled over that cap, and
-    its least value searched from the deepest normal and from the worst sample). The bound is taken about the
-    face's normal itself (no Newton step: the sets' deepest normal lies off it) or about the deepest normal
-    found by two steps; with these, where the face's cap lies within both arcs, it is certified to the depth."""
+       steps=st.sampled_from([0, 2]), balls=st.sampled_from([(False, False), (False, True), (True, False),
+                                                               (True, True)]))
+def test_torus_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, below, cos_planes, steps, balls):
+    """Two cores' tori crossing, or a torus and a ball, or two balls: where a face is certified to r, every
+    normal within gamma = acos(d / r) of its own has the sets' support, found numerically over the torus
+    patches (a ball's is exact), at least r (sampled over that cap, and its least value searched from the
+    deepest normal and from the worst sample). The bound is taken about the face's normal itself (no Newton
+    step: the sets' deepest normal lies off it) or about the deepest normal found by two steps; with these,
+    where the face's cap lies within both arcs, it is certified to the depth."""
     rng = np.random.default_rng(seed)
     s = _unit(rng.normal(size=3))
     depth = rng.uniform(0.002, 0.1)
-    A, B = _crossing_tori(rng, s, depth, cos_planes, rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9))
+    A, B = _crossing_tori(rng, s, depth, cos_planes, rng.uniform(-0.9, 0.9), rng.uniform(-0.9, 0.9), balls)
     assert abs(_tori_support(A, B, s)[0] - depth) < 1e-12
     n = _unit(s + rng.normal(size=3) * tilt)
     d = depth * (n @ s) * (1.0 - below)
     k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2], RHO,
                                          n[0], n[1], n[2], steps)
-    if steps == 2 and cos_planes <= 0.5 and tilt <= 1e-3:  # (along nearly parallel edges, or from farther, two
+    if steps == 2 and (cos_planes <= 0.5 or any(balls)) and tilt <= 1e-3:  # (along nearly parallel edges, or from farther, two
         # steps may fail or stop short)
         assert np.linalg.norm(np.array(k[:3]) - s) < 1e-7  # they found the deepest normal
         assert depth - 3e-12 <= set_depth <= depth  # (less the slack for rounding)
@@ -265,9 +276,10 @@ def test_torus_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, bel
         return
     r = torus_pair_lift(k, RHO, RHO, set_depth, slack, n[0], n[1], n[2], d, d)
     # the face's cap within both arcs (their ends b from s) and across crossing ones: certified to the depth
-    rooms = [math.acos(T[2] / RHO) - abs(math.asin(np.clip(T[1] @ (sg * s), -1, 1))) for T, sg in ((A, 1), (B, -1))]
+    rooms = [math.inf if T[2] < 0 else math.acos(T[2] / RHO) - abs(math.asin(np.clip(T[1] @ (sg * s), -1, 1)))
+             for T, sg in ((A, 1), (B, -1))]
     Phi = math.acos(np.clip(n @ s, -1, 1)) + math.acos(d / depth)
-    if steps == 2 and Phi < min(rooms) and cos_planes <= 0.5:
+    if steps == 2 and Phi < min(rooms) and (cos_planes <= 0.5 or any(balls)):
         assert r >= depth - 2e-11  # (the slack for rounding: 1e-12 of the scale, about 12 m)
     if r == -math.inf:
         return
@@ -333,23 +345,29 @@ def _arc_set_support(T, s, side, V):
 
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), tilt=st.sampled_from([0.0, 1e-4, 1e-3, 1e-2]),
-       cos_planes=st.sampled_from([0.0, 0.5, 0.9]), steps=st.sampled_from([0, 2]))
-def test_torus_pair_bound_lies_below_the_arcs_support_at_every_angle(seed, tilt, cos_planes, steps):
+       cos_planes=st.sampled_from([0.0, 0.5, 0.9]), steps=st.sampled_from([0, 2]),
+       balls=st.sampled_from([(False, False), (False, True), (True, False), (True, True)]),
+       room=st.sampled_from([0.0, 1e-3, 0.02, 0.2]))
+def test_torus_pair_bound_lies_below_the_arcs_support_at_every_angle(seed, tilt, cos_planes, steps, balls, room):
     """beta(phi), the bound torus_pair_lift minimises, is at most the support of K = (A's arc) - (B's arc)
     (the arcs in the planes of their axes and s, their points sampled) along every normal phi from s, out to
-    0.3 rad: past the arcs' ends, across their planes and off K's deepest normal."""
+    0.3 rad: past the arcs' ends, across their planes and off K's deepest normal. A side may instead be a
+    big sphere's cap of normals within ``room`` of s (A's) or -s (B's): the set's ball narrowed by
+    with_room, its support that of the cap's points (_segment_support)."""
     rng = np.random.default_rng(seed)
     s_true = _unit(rng.normal(size=3))
     A, B = _crossing_tori(rng, s_true, rng.uniform(0.002, 0.1), cos_planes, rng.uniform(-0.95, 0.95),
-                          rng.uniform(-0.95, 0.95))
+                          rng.uniform(-0.95, 0.95), balls)
     n = _unit(s_true + rng.normal(size=3) * tilt)
     k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2], RHO,
                                          n[0], n[1], n[2], steps)
     if set_depth == -math.inf:
         return
+    k = with_room(k, room if balls[0] else math.inf, room if balls[1] else math.inf)
     s = np.array(k[:3])
     V = np.vstack([_normals_near(rng, s, g, n, count=60) for g in (1e-4, 1e-3, 1e-2, 0.05, 0.3)])
-    hK = _arc_set_support(A, s, 1.0, V) + _arc_set_support(B, s, -1.0, V)
+    hK = (_segment_support(A[0], s, room, V) if balls[0] else _arc_set_support(A, s, 1.0, V)) + (
+        _segment_support(B[0], -s, room, -V) if balls[1] else _arc_set_support(B, s, -1.0, V))
     phi = np.arccos(np.clip(V @ s, -1.0, 1.0))
     beta = np.array([_beta(k, RHO, RHO, p, math.cos(p), math.sin(p))[0] for p in phi])
     assert (beta - slack <= hK + 1e-13).all()

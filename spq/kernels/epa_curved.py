@@ -35,6 +35,10 @@ Curved sets inside D close the bound instead:
   planes, and past their ends), s found by Newton's steps; a face is certified where that bound holds
   over its cone (torus_pair_lift). On kuka_link_4's 2,036 overlapping STP-STP poses (two fifths of
   them end between two tori) the iterations fall from 36.1 to 27.4 (docs/notes/speed-45.md, stop 95).
+  A big sphere takes an arc's place as its cap of normals about s (or -s), which loses nothing across
+  s: a torus and a big sphere, or two big spheres (a sixth of those poses), end in 26 to 29
+  iterations instead of 36 to 42 (27.4 -> 25.7 on all of them, stop 96); at such a corner the sphere's
+  segment less the other's point is not tried.
 
 A face F (unit normal n, offset d) is certified to offset r when D's support is at least r along
 every normal of its cone (the EPA's bound is then the least certified offset). The cylinder does it
@@ -315,73 +319,116 @@ def _arc_about(m0, m1, m2, e0, e1, e2, a, rho, u0, u1, u2):
     return m0 - a * w0, m1 - a * w1, m2 - a * w2, b, e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
 
 
+@kernel(inline="always")
+def _side_about(m0, m1, m2, e0, e1, e2, a, rho, u0, u1, u2):
+    """A core's curved patch about the unit normal u, as _arc_about: a torus's meridian arc, or, where a < 0,
+    the whole ball of radius rho about m (its centre, b = inf: no end, and no plane)."""
+    if a < 0.0:
+        return m0, m1, m2, math.inf, 0.0, 0.0, 0.0
+    return _arc_about(m0, m1, m2, e0, e1, e2, a, rho, u0, u1, u2)
+
+
 @kernel
 def torus_pair_set(mA, eA, aA, rhoA, mB, eB, aB, rhoB, n0, n1, n2, steps):
-    """A lower bound on D's support about the deepest normal of two cores' tori, A's (centre m, unit
-    axis e, circle radius a, ball radius rho) less B's (in A's frame), from a unit normal n near it
-    (``steps`` Newton steps; with none, about n itself):
+    """A lower bound on D's support about the deepest normal of two cores' curved patches, A's (a torus:
+    centre m, unit axis e, circle radius a, ball radius rho; or, where a < 0, the ball of radius rho
+    about m) less B's (in A's frame), from a unit normal n near it (``steps`` Newton steps; with none,
+    about n itself):
     (k, depth, slack), k = (s0, s1, s2, A0, B0, bA, bB, L, cos bA, sin bA, cos bB, sin bB) the terms of
     beta below (torus_pair_lift), depth = beta(0) less rounding slack, or -inf where the arcs or
-    Newton's steps fail.
+    Newton's steps fail. A ball's b is inf (cos 1, sin 0): a big sphere's cap narrows it (with_room).
 
     Each torus's spindle holds its meridian arcs, so D holds K = (c_A + rho_A G_A) - (c_B + rho_B G_B),
     G_A the great-circle arc of A's unit normals in the plane of e_A and a unit s, G_B B's in the plane
-    of e_B and -s (_arc_about), whose support along a unit v is C.v + rho_A |P_A v| cos(zeta_A) + rho_B
-    |P_B v| cos(zeta_B), C = c_A - c_B, P the projection on the arc's plane and zeta its angle past the
-    arc's end. At an angle phi from s in any direction t: C.v >= A0 cos phi - B0 sin phi (A0 = C.s, B0 =
-    |C - A0 s|); the in-plane angle moves by at most phi, so zeta_X <= max(0, phi - b_X); and |P_X v|^2 =
-    1 - sin^2(phi) (nu_X.t)^2 with the planes' unit normals nu_X across s, so that rho_A |P_A v| + rho_B
-    |P_B v| >= rho_A + rho_B - L (1 - cos phi), L the greater eigenvalue of rho_A nu_A nu_A^T + rho_B
-    nu_B nu_B^T (sqrt(1 - x) >= 1 - x / (1 + cos phi) for x <= sin^2 phi). So D's support at angle phi
+    of e_B and -s (_arc_about), or the whole sphere of normals for a ball, whose support along a unit v
+    is C.v + rho_A |P_A v| cos(zeta_A) + rho_B |P_B v| cos(zeta_B), C = c_A - c_B, P the projection on
+    the arc's plane (the identity for a ball) and zeta its angle past the arc's end. At an angle phi
+    from s in any direction t: C.v >= A0 cos phi - B0 sin phi (A0 = C.s, B0 = |C - A0 s|); the in-plane
+    angle moves by at most phi, so zeta_X <= max(0, phi - b_X); and |P_X v|^2 = 1 - sin^2(phi)
+    (nu_X.t)^2 with the planes' unit normals nu_X across s, so that rho_A |P_A v| + rho_B |P_B v| >=
+    rho_A + rho_B - L (1 - cos phi), L the greater eigenvalue of the arcs' rho_X nu_X nu_X^T summed (0
+    for two balls; sqrt(1 - x) >= 1 - x / (1 + cos phi) for x <= sin^2 phi). So D's support at angle phi
     from s is at least beta(phi) = A0 cos phi - B0 sin phi + rho_A cos zeta_A + rho_B cos zeta_B - L (1 -
     cos phi).
 
     s is K's deepest normal, found by Newton's steps from n on the sphere (NEWTON_STEPS in the EPA; the
-    tangential part of C is K's gradient there, rho_A t_A t_A^T + rho_B t_B t_B^T - h its Hessian, t
-    the arcs' tangents): about n itself, B0 sin phi would cost about rho times the square of n's error,
-    far more than the tolerance. Across the arcs beta grows as (rho (1 - c) - depth) phi^2 / 2 (c = |nu_A . nu_B|), so
-    it reaches faces far below the depth where the edges cross; along nearly parallel edges it reaches
-    none."""
+    tangential part of C is K's gradient there, rho_A T_A + rho_B T_B - h its Hessian, T_X = t_X t_X^T
+    for an arc with tangent t_X at s, the identity for a ball): about n itself, B0 sin phi would cost
+    about rho times the square of n's error, far more than the tolerance. Across two arcs beta grows as
+    (rho (1 - c) - depth) phi^2 / 2 (c = |nu_A . nu_B|), so it reaches faces far below the depth where
+    the edges cross; along nearly parallel edges it reaches none. Two balls' deepest normal is -C / |C|."""
     fail = ((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), -math.inf, 0.0)
+    arcA, arcB = aA >= 0.0, aB >= 0.0
     s0, s1, s2 = n0, n1, n2
     for k in range(steps + 1):
-        cA0, cA1, cA2, bA, xA0, xA1, xA2 = _arc_about(mA[0], mA[1], mA[2], eA[0], eA[1], eA[2], aA, rhoA, s0, s1, s2)
-        cB0, cB1, cB2, bB, xB0, xB1, xB2 = _arc_about(mB[0], mB[1], mB[2], eB[0], eB[1], eB[2], aB, rhoB,
-                                                      -s0, -s1, -s2)
+        cA0, cA1, cA2, bA, xA0, xA1, xA2 = _side_about(mA[0], mA[1], mA[2], eA[0], eA[1], eA[2], aA, rhoA, s0, s1, s2)
+        cB0, cB1, cB2, bB, xB0, xB1, xB2 = _side_about(mB[0], mB[1], mB[2], eB[0], eB[1], eB[2], aB, rhoB,
+                                                       -s0, -s1, -s2)
         if not (bA > -0.5 and bB > -0.5):  # (-inf: no arc; far past an end: no use, and zeta < pi / 2)
             return fail
         C0, C1, C2 = cA0 - cB0, cA1 - cB1, cA2 - cB2
+        if not (arcA or arcB):  # two balls: the centres' line, at once
+            cn = math.sqrt(C0 * C0 + C1 * C1 + C2 * C2)
+            if not cn > 0.0:
+                return fail
+            s0, s1, s2 = -C0 / cn, -C1 / cn, -C2 / cn
         A0 = C0 * s0 + C1 * s1 + C2 * s2
         p0, p1, p2 = C0 - A0 * s0, C1 - A0 * s1, C2 - A0 * s2
-        xa = math.sqrt(xA0 * xA0 + xA1 * xA1 + xA2 * xA2)
-        xb = math.sqrt(xB0 * xB0 + xB1 * xB1 + xB2 * xB2)
-        xA0, xA1, xA2, xB0, xB1, xB2 = xA0 / xa, xA1 / xa, xA2 / xa, xB0 / xb, xB1 / xb, xB2 / xb
-        if k == steps:
+        if arcA:
+            xa = math.sqrt(xA0 * xA0 + xA1 * xA1 + xA2 * xA2)
+            xA0, xA1, xA2 = xA0 / xa, xA1 / xa, xA2 / xa
+        if arcB:
+            xb = math.sqrt(xB0 * xB0 + xB1 * xB1 + xB2 * xB2)
+            xB0, xB1, xB2 = xB0 / xb, xB1 / xb, xB2 / xb
+        if k == steps or not (arcA or arcB):
             break
-        # tangent basis (t_A, nu_A) at s; t_X = nu_X x s
-        t0, t1, t2 = xA1 * s2 - xA2 * s1, xA2 * s0 - xA0 * s2, xA0 * s1 - xA1 * s0
-        u0, u1, u2 = xB1 * s2 - xB2 * s1, xB2 * s0 - xB0 * s2, xB0 * s1 - xB1 * s0
-        ga = u0 * t0 + u1 * t1 + u2 * t2
-        gb = u0 * xA0 + u1 * xA1 + u2 * xA2
+        # tangent basis (t, nu) at s from the first arc (t = nu x s), and the other side's part of the Hessian
         h = A0 + rhoA + rhoB
-        M11, M12, M22 = rhoA + rhoB * ga * ga - h, rhoB * ga * gb, rhoB * gb * gb - h
+        if arcA:
+            v0, v1, v2, r1, r2, other = xA0, xA1, xA2, rhoA, rhoB, arcB
+        else:
+            v0, v1, v2, r1, r2, other = xB0, xB1, xB2, rhoB, rhoA, False
+        t0, t1, t2 = v1 * s2 - v2 * s1, v2 * s0 - v0 * s2, v0 * s1 - v1 * s0
+        if other:
+            u0, u1, u2 = xB1 * s2 - xB2 * s1, xB2 * s0 - xB0 * s2, xB0 * s1 - xB1 * s0
+            ga = u0 * t0 + u1 * t1 + u2 * t2
+            gb = u0 * v0 + u1 * v1 + u2 * v2
+            M11, M12, M22 = r1 + r2 * ga * ga - h, r2 * ga * gb, r2 * gb * gb - h
+        else:
+            M11, M12, M22 = r1 + r2 - h, 0.0, r2 - h
         det = M11 * M22 - M12 * M12
         if not (det > 0.0 and M11 > 0.0):
             return fail
         c1 = p0 * t0 + p1 * t1 + p2 * t2
-        c2 = p0 * xA0 + p1 * xA1 + p2 * xA2
+        c2 = p0 * v0 + p1 * v1 + p2 * v2
         y1 = -(M22 * c1 - M12 * c2) / det
         y2 = -(M11 * c2 - M12 * c1) / det
-        s0, s1, s2 = s0 + y1 * t0 + y2 * xA0, s1 + y1 * t1 + y2 * xA1, s2 + y1 * t2 + y2 * xA2
+        s0, s1, s2 = s0 + y1 * t0 + y2 * v0, s1 + y1 * t1 + y2 * v1, s2 + y1 * t2 + y2 * v2
         sn = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
         s0, s1, s2 = s0 / sn, s1 / sn, s2 / sn
     B0 = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-    ca = min(1.0, abs(xA0 * xB0 + xA1 * xB1 + xA2 * xB2))
-    L = 0.5 * (rhoA + rhoB + math.sqrt((rhoA - rhoB) ** 2 + 4.0 * rhoA * rhoB * ca * ca))
+    if arcA and arcB:
+        ca = min(1.0, abs(xA0 * xB0 + xA1 * xB1 + xA2 * xB2))
+        L = 0.5 * (rhoA + rhoB + math.sqrt((rhoA - rhoB) ** 2 + 4.0 * rhoA * rhoB * ca * ca))
+    else:
+        L = rhoA if arcA else (rhoB if arcB else 0.0)
     scale = rhoA + rhoB + abs(C0) + abs(C1) + abs(C2)
     depth = A0 + rhoA * math.cos(max(0.0, -bA)) + rhoB * math.cos(max(0.0, -bB)) - SLACK * scale
-    k = (s0, s1, s2, A0, B0, bA, bB, L, math.cos(bA), math.sin(bA), math.cos(bB), math.sin(bB))
+    k = (s0, s1, s2, A0, B0, bA, bB, L, math.cos(bA) if arcA else 1.0, math.sin(bA) if arcA else 0.0,
+         math.cos(bB) if arcB else 1.0, math.sin(bB) if arcB else 0.0)
     return k, depth, SUPPORT_SLACK * scale
+
+
+@kernel(inline="always")
+def with_room(k, bA, bB):
+    """torus_pair_set's terms k with the sides' ends b narrowed to bA, bB (>= 0; inf leaves a side as it
+    is): a ball's to the cap of normals its big sphere holds about s (A's) or -s (B's)."""
+    s0, s1, s2, A0, B0, kA, kB, L, cA, sA, cB, sB = k
+    if bA < kA:
+        kA, cA, sA = bA, math.cos(bA), math.sin(bA)
+    if bB < kB:
+        kB, cB, sB = bB, math.cos(bB), math.sin(bB)
+    return s0, s1, s2, A0, B0, kA, kB, L, cA, sA, cB, sB
 
 
 @kernel(inline="always")
@@ -499,18 +546,54 @@ def _tori_at(work, row):
 
 
 @kernel
+def _curved(f, ix, p, side, R, t):
+    """(m, e, a) of curved patch p of the core in A's frame, as _torus, or, for a big sphere, its centre
+    with a = -1 (torus_pair_set's ball)."""
+    V, F = ix[IDX_V], ix[IDX_F]
+    if p >= V + F:
+        return _torus(f, ix, p, side, R, t)
+    k = F_VERTICES + 3 * V + 3 * (p - V)
+    c0, c1, c2 = f[at(k)], f[at(k + 1)], f[at(k + 2)]
+    if side == STP_IS_B:
+        c0, c1, c2 = (R[0, 0] * c0 + R[0, 1] * c1 + R[0, 2] * c2 + t[0],
+                      R[1, 0] * c0 + R[1, 1] * c1 + R[1, 2] * c2 + t[1],
+                      R[2, 0] * c0 + R[2, 1] * c1 + R[2, 2] * c2 + t[2])
+    return c0, c1, c2, 0.0, 0.0, 0.0, -1.0
+
+
+@kernel(inline="always")
+def _cap_room(f, ix, p, u0, u1, u2):
+    """The angle about the unit u (the core's local frame) within which big sphere p's normals lie in
+    its region (its cap), or -inf where u is not in it."""
+    ca = big_sphere_cap(f, ix, p, u0, u1, u2)[3]
+    return math.acos(max(-1.0, ca)) if ca <= 1.0 else -math.inf
+
+
+@kernel
 def _tori_set(work, pair, p, q, rhoA, rhoB, n0, n1, n2):
-    """torus_pair_set for torus patches p of A and q of B (ball radii rho) about n, or the last one's (kept in EPA_TORI:
-    p, q, depth, slack, then the terms): a set depends on its face only through Newton's start, so a
-    face of the same pair reuses it."""
+    """torus_pair_set for curved patches p of A and q of B (tori or big spheres, ball radii rho; a big
+    sphere's ball narrowed to its cap about the set's deepest normal) about n, or the last one's (kept in
+    EPA_TORI: p, q, depth, slack, then the terms): a set depends on its face only through Newton's start,
+    so a face of the same pair reuses it."""
     row = EPA_ROW + EPA_TORI
     if work[row, 0] == p and work[row, 1] == q:
         return _tori_at(work, row), work[row, 2], work[row, 3]
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    m0, m1, m2, e0, e1, e2, a = _torus(fA, iA, p, STP_IS_A, R, t)
-    g0, g1, g2, h0, h1, h2, b = _torus(fB, iB, q, STP_IS_B, R, t)
+    m0, m1, m2, e0, e1, e2, a = _curved(fA, iA, p, STP_IS_A, R, t)
+    g0, g1, g2, h0, h1, h2, b = _curved(fB, iB, q, STP_IS_B, R, t)
     k, depth, slack = torus_pair_set((m0, m1, m2), (e0, e1, e2), a, rhoA, (g0, g1, g2), (h0, h1, h2), b, rhoB,
                                      n0, n1, n2, NEWTON_STEPS)
+    if depth > -math.inf and (a < 0.0 or b < 0.0):
+        s0, s1, s2 = k[0], k[1], k[2]
+        bA = _cap_room(fA, iA, p, s0, s1, s2) if a < 0.0 else math.inf
+        bB = math.inf
+        if b < 0.0:  # B's normal -s in B's frame
+            bB = _cap_room(fB, iB, q, -(R[0, 0] * s0 + R[1, 0] * s1 + R[2, 0] * s2),
+                           -(R[0, 1] * s0 + R[1, 1] * s1 + R[2, 1] * s2), -(R[0, 2] * s0 + R[1, 2] * s1 + R[2, 2] * s2))
+        if bA == -math.inf or bB == -math.inf:
+            depth = -math.inf
+        else:
+            k = with_room(k, bA, bB)
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = p, q, depth, slack
     _put_tori(work, row, k)
     return k, depth, slack
@@ -552,10 +635,11 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
     """(r, u0, u1, u2, depth, core): the face's certified offset r, at least d, from the curved sets in D
     that its corners give (module docstring): for each corner from ``first`` on (the run's own
     supports) whose support on an STP-BV core's side (``sides``: 1 A, 2 B, 3 both) was a big sphere,
-    that sphere's segment less the corner's own point of the other side; where it was a torus and the
-    other side is a polytope, the torus's cylinder swept between two distinct points of the polytope
-    among the corners; where both of a corner's points lie on tori (two cores), their arcs' bound
-    (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's frame) and depth: the deepest
+    that sphere's segment less the corner's own point of the other side (a vertex's: where the other
+    core's point is curved too, their pair's set below); where it was a torus and the other side is a
+    polytope, the torus's cylinder swept between two distinct points of the polytope among the
+    corners; where both of a corner's points lie on curved patches (two cores: tori or big spheres),
+    their arcs' or caps' bound (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's frame) and depth: the deepest
     normal and the depth of the set that gave r (depth -inf if none did); core: the side of its STP-BV
     (1 A, 2 B; 0 if none)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
@@ -595,6 +679,7 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
         col = 0 if side == STP_IS_A else 1
         polytope_other = (kB if side == STP_IS_A else kA) == POLYTOPE
         V, F = stp_i[IDX_V], stp_i[IDX_F]
+        V_other = (iB if side == STP_IS_A else iA)[IDX_V]
         rho = stp_f[F_BIG_R] - stp_f[F_R]
         ra, rb, rc = at(EPA_ROW + other + corners[0]), at(EPA_ROW + other + corners[1]), at(EPA_ROW + other + corners[2])
         ya = (work[ra, 0], work[ra, 1], work[ra, 2])  # (scalars, not views: a view costs a reference count)
@@ -606,6 +691,8 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
                 continue
             p = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + col)]
             if V <= p < V + F:
+                if sides == 3 and iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + 1 - col)] >= V_other:
+                    continue  # the other core's point on a curved patch: the pair's set, below
                 # the sphere's segment less this corner's own point of the other side: the pair whose
                 # difference the corner is (the other corners' points certified no more on kuka_link_4's
                 # overlaps, for three times the tests)
@@ -652,16 +739,16 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
                             1 if sgn > 0.0 else 2
                         if depth > work[EPA_ROW + EPA_SET, 2]:
                             _keep_set(work, 1.0, sgn, depth, (m0, m1, m2), a, (e0, e1, e2), rho, (z0, z1, z2), y1, y2)
-    if sides == 3:  # a torus of each core at the same corner: their arcs (torus_pair_reach)
+    if sides == 3:  # a curved patch of each core at the same corner: their arcs or caps (torus_pair_set)
         rhoA, rhoB = fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R]
-        TA, TB = iA[IDX_V] + iA[IDX_F], iB[IDX_V] + iB[IDX_F]
+        VA, VB = iA[IDX_V], iB[IDX_V]
         for ci in range(3):
             v = corners[ci]
             if v < first:
                 continue
             p = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v)]
             q = iw[at(EPA_IOFF + EPA_FEATURES + 2 * v + 1)]
-            if p < TA or q < TB:
+            if p < VA or q < VB:
                 continue
             if ci >= 1 and corners[0] >= first and iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[0])] == p and \
                     iw[at(EPA_IOFF + EPA_FEATURES + 2 * corners[0] + 1)] == q:
