@@ -2,9 +2,10 @@
 every point sampled from the certified cap lies in the set, tested by its own definition (a point of
 the circular segment swept along the polytope's edge); every normal a ball segment must lift has its
 support, found numerically over the segment's cap (its rim sampled ever finer), at least the certified
-offset; every normal two tori must lift has their spindles' support, found numerically over the torus
-patches, at least the certified offset, and their bound lies below their arcs' sampled support at every
-angle; and the bounds reach the set's depth where the face's normal is the deepest one."""
+offset; every normal two tori (or a torus and a ball, or two balls) must lift has their support, found
+numerically over the torus patches, at least the certified offset, and their bound lies below their arcs'
+(or caps') sampled support at every angle; and the bounds reach the set's depth where the face's normal is
+the deepest one."""
 
 import math
 
@@ -268,8 +269,8 @@ def test_torus_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, bel
     d = depth * (n @ s) * (1.0 - below)
     k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2], RHO,
                                          n[0], n[1], n[2], steps)
-    if steps == 2 and (cos_planes <= 0.5 or any(balls)) and tilt <= 1e-3:  # (along nearly parallel edges, or from farther, two
-        # steps may fail or stop short)
+    # (along nearly parallel edges, or from farther, two steps may fail or stop short)
+    if steps == 2 and (cos_planes <= 0.5 or any(balls)) and tilt <= 1e-3:
         assert np.linalg.norm(np.array(k[:3]) - s) < 1e-7  # they found the deepest normal
         assert depth - 3e-12 <= set_depth <= depth  # (less the slack for rounding)
     if set_depth == -math.inf:

@@ -509,7 +509,7 @@ def torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor):
 @kernel
 def _keep_set(work, kind, sgn, depth, p1, s1, p2, s2, p3, y1, y2):
     """The deepest set found: a cylinder (kind 1: m, a, e, rho, azimuth, y1, y2) or a ball segment (kind 2:
-    C, rho, u, cos alpha), in z = sgn x. (Two cores' tori, kind 3, are kept by face_certificate.)"""
+    C, rho, u, cos alpha), in z = sgn x. (Two cores' curved patches, kind 3, are kept by face_certificate.)"""
     row = EPA_ROW + EPA_SET
     work[row, 0], work[row, 1], work[row, 2] = kind, sgn, depth
     for c in range(3):
@@ -639,9 +639,9 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
     core's point is curved too, their pair's set below); where it was a torus and the other side is a
     polytope, the torus's cylinder swept between two distinct points of the polytope among the
     corners; where both of a corner's points lie on curved patches (two cores: tori or big spheres),
-    their arcs' or caps' bound (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's frame) and depth: the deepest
-    normal and the depth of the set that gave r (depth -inf if none did); core: the side of its STP-BV
-    (1 A, 2 B; 0 if none)."""
+    their arcs' or caps' bound (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's
+    frame) and depth: the deepest normal and the depth of the set that gave r (depth -inf if none did);
+    core: the side of its STP-BV (1 A, 2 B; 0 if none)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     best, bu0, bu1, bu2, bdepth, bcore = d, 0.0, 0.0, 0.0, -math.inf, 0
     if not d > 0.0:

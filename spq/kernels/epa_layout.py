@@ -41,7 +41,7 @@ EPA_SPHERES = EPA_NEAR + 5 + PAD_ROWS
 EPA_CERTIFIED = EPA_SPHERES + 2 * EPA_MAX_VERTICES + PAD_ROWS
 EPA_BEST = EPA_CERTIFIED + EPA_MAX_FACES + PAD_ROWS
 EPA_SET = EPA_BEST + 3  # the deepest curved set found (spq.kernels.epa_curved), six rows
-EPA_TORI = EPA_SET + 6  # the last two cores' tori tried (epa_curved.torus_pair_set), four rows
+EPA_TORI = EPA_SET + 6  # the last two cores' curved patches tried (epa_curved.torus_pair_set), four rows
 EPA_FLOAT_ROWS = EPA_TORI + 4
 
 # ints
