@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize
 
 from spq.kernels.epa_curved import (_beta, ball_segment_reach, cylinder_reach, halfspace_reach, torus_pair_lift,
-                                     torus_pair_set, with_room)
+                                     tight_pair_lift, torus_pair_set, with_room)
 
 RHO = 2.0
 
@@ -372,3 +372,81 @@ def test_torus_pair_bound_lies_below_the_arcs_support_at_every_angle(seed, tilt,
     phi = np.arccos(np.clip(V @ s, -1.0, 1.0))
     beta = np.array([_beta(k, RHO, RHO, p, math.cos(p), math.sin(p))[0] for p in phi])
     assert (beta - slack <= hK + 1e-13).all()
+
+
+def _set_support(A, B, s, room, V):
+    """The support of the set torus_pair_set bounds, K = (A's arc, or its ball's cap of normals within ``room`` of
+    s) less (B's arc, or its ball's cap within ``room`` of -s), along the unit rows of V (points sampled)."""
+    V = np.atleast_2d(V)
+
+    def cap(m, u, W):  # (a whole ball's support is exact)
+        return W @ m + RHO if room == math.inf else _segment_support(m, u, room, W)
+
+    hA = cap(A[0], s, V) if A[2] < 0 else _arc_set_support(A, s, 1.0, V)
+    hB = cap(B[0], -s, -V) if B[2] < 0 else _arc_set_support(B, s, -1.0, V)
+    return hA + hB
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), tilt=st.sampled_from([0.0, 1e-4, 1e-3, 1e-2, 5e-2]),
+       below=st.sampled_from([1e-7, 1e-5, 1e-4, 1e-3, 1e-2]), cos_planes=st.sampled_from([0.0, 0.5, 0.9, 0.99]),
+       balls=st.sampled_from([(False, False), (False, True), (True, False), (True, True)]),
+       room=st.sampled_from([0.0, 2e-3, 0.02, math.inf]), steps=st.sampled_from([0, 1, 2]))
+def test_tight_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, below, cos_planes, balls, room, steps):
+    """Where tight_pair_lift certifies a face to r, every normal within gamma = acos(d / r) of its own has the
+    support of the set itself (the two arcs, or a ball's cap of normals: their points sampled, not the spindles)
+    at least r, sampled over that cap and its least value searched from the worst sample; and it reaches the
+    depth where torus_pair_lift does not (crossing edges, a face 1e-3 of the depth below it)."""
+    rng = np.random.default_rng(seed)
+    s_true = _unit(rng.normal(size=3))
+    depth = rng.uniform(0.002, 0.1)
+    A, B = _crossing_tori(rng, s_true, depth, cos_planes, rng.uniform(-0.95, 0.95), rng.uniform(-0.95, 0.95), balls)
+    n = _unit(s_true + rng.normal(size=3) * tilt)
+    d = depth * (n @ s_true) * (1.0 - below)
+    k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2], RHO,
+                                         n[0], n[1], n[2], steps)
+    if set_depth == -math.inf:
+        return
+    k = with_room(k, room if balls[0] else math.inf, room if balls[1] else math.inf)
+    r = tight_pair_lift(k, RHO, RHO, not balls[0], not balls[1], set_depth, slack, n[0], n[1], n[2], d, d)
+    if r == -math.inf:
+        return
+    assert r > d
+    s = np.array(k[:3])
+    gamma = math.acos(min(d / r, 1.0))
+    V = _normals_near(rng, n, gamma, s)
+    H = _set_support(A, B, s, room, V)
+    assert (H >= r - 1e-13).all()
+    q1 = _unit(np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]))
+    q2 = np.cross(n, q1)
+    lim = math.tan(gamma)
+
+    def h(xy):
+        x, y = xy
+        rr = math.hypot(x, y)
+        if rr > lim:
+            x, y = x * lim / rr, y * lim / rr
+        return _set_support(A, B, s, room, _unit(n + x * q1 + y * q2))[0]
+
+    worst = V[np.argmin(H)]
+    found = minimize(h, [(worst @ q1) / (worst @ n), (worst @ q2) / (worst @ n)], method="Nelder-Mead",
+                     options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 400})
+    assert found.fun >= r - 1e-13
+
+
+def test_tight_pair_lift_reaches_faces_the_sinusoid_bound_refuses():
+    """Two tori whose arcs cross at 60 degrees, the deepest normal 1e-3 rad from B's arc's end: a face 1e-4 of
+    the 5 cm depth below it, tilted 2e-2 rad, is refused by torus_pair_lift (past B's end and across both planes
+    at once) and certified to the depth by tight_pair_lift."""
+    s = _unit(np.array([0.3, -0.5, 0.8]))
+    depth = 0.05
+    m, e, a = _crossing_tori(np.random.default_rng(5), s, depth, 0.5, 0.2, 0.0)[1]
+    t0 = math.acos(a / RHO)  # (the same draws again: B's latitude 1e-3 rad from its arc's end)
+    A, B = _crossing_tori(np.random.default_rng(5), s, depth, 0.5, 0.2, (t0 - 1e-3) / t0)
+    n = _unit(s + 2e-2 * _unit(np.cross(s, [0.0, 0.0, 1.0])))
+    d = depth * (n @ s) * (1.0 - 1e-4)
+    k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], RHO, tuple(B[0]), tuple(B[1]), B[2],
+                                         RHO, n[0], n[1], n[2], 2)
+    assert abs(k[6] - 1e-3) < 1e-6  # B's room to its arc's end
+    assert torus_pair_lift(k, RHO, RHO, set_depth, slack, n[0], n[1], n[2], d, d) < depth - 1e-6
+    assert tight_pair_lift(k, RHO, RHO, True, True, set_depth, slack, n[0], n[1], n[2], d, d) >= depth - 2e-11

@@ -506,6 +506,105 @@ def torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor):
     return fail
 
 
+TIGHT_STEPS = 40  # tight_pair_lift's most steps in tan(phi) beyond the arcs' quadratic part (more: refused)
+
+
+@kernel(inline="always")
+def _arc_gain(x, b, cb, sb):
+    """H(x) = sigma(1, x) - 1 for x >= 0: the support of the unit normals within b of s (an arc or a cap, b >= 0)
+    along s + x a (a unit, across s), less 1: sqrt(1 + x^2) - 1 while atan(x) <= b, then the end's cos b + x sin b
+    - 1. H(sqrt(u)) is concave in u (two concave pieces, their slopes cos(b) / 2 alike where they meet)."""
+    if b >= 0.5 * math.pi or x * cb <= sb:
+        return x * x / (math.sqrt(1.0 + x * x) + 1.0)
+    return x * sb - (1.0 - cb)
+
+
+@kernel(inline="always")
+def _least_gain(aA, aB, arcA, arcB, c2):
+    """The least of aA (y.t_A)^2 + aB (y.t_B)^2 over unit y across s, an arc's term along its tangent t_X and a
+    ball's aX |y|^2 (c2 = (t_A.t_B)^2): the least eigenvalue for two arcs (as det / the greater, without
+    cancellation), the ball's weight against an arc, the sum for two balls."""
+    if arcA and arcB:
+        big = 0.5 * (aA + aB + math.sqrt((aA - aB) ** 2 + 4.0 * aA * aB * c2))
+        return aA * aB * (1.0 - c2) / big if big > 0.0 else 0.0
+    if arcA:
+        return aB
+    if arcB:
+        return aA
+    return aA + aB
+
+
+@kernel
+def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floor):
+    """The offset r to which a face (unit normal n, offset d > 0) is certified by the support of K itself
+    (torus_pair_set's set: arcA, arcB whether each side is a torus's arc or a big sphere's cap), or -inf where
+    that is not above d and ``floor``: the set's depth less slack, or less where the gradient B0 that Newton's
+    steps leave at s needs it.
+
+    beta (torus_pair_lift) takes the angle past both arcs' ends and the loss across both planes at once,
+    which no one direction has: about s, K's least support falls below the depth at 1e-2 rad where K's own
+    stays above it out to 0.2 (docs/notes/speed-45.md, stop 96). Here, on the tangent plane at s (v = s + y,
+    |y| = x = tan phi): h_K(s + y) >= depth0 - B0 x + rho_A H_A(y.t_A) + rho_B H_B(y.t_B) (depth0 = A0 +
+    rho_A + rho_B; a cap's term takes |y|), and as H(sqrt(u)) is concave with H(0) = 0, H(y.t) >= H(x) (y.t)^2
+    / x^2, so the two terms hold mu(x) = _least_gain(rho_A H_A(x), rho_B H_B(x)), which grows with x. h_K(v) =
+    h_K(s + y) / sqrt(1 + x^2) >= r + slack where mu(x) >= B0 x + depth0 x^2 / 2 - eps, eps = depth0 - r - slack
+    (sqrt(1 + x^2) <= 1 + x^2 / 2; the slack is for rounding, as torus_pair_lift's). Up to the first arc's end (x1) the arcs' terms are at least x^2 / (1 + sqrt(1 + x1^2)), a
+    quadratic checked in closed form; beyond, as mu grows with x and so does the right side, each step goes
+    from x to where the right side reaches mu(x), out to tan Phi (Phi = angle(n, s) + acos(d / depth), as
+    torus_pair_lift)."""
+    fail = -math.inf
+    s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
+    lim = max(d, floor)
+    if not (bA >= 0.0 and bB >= 0.0 and d > 0.0 and depth - slack > lim):
+        return fail
+    cp = n0 * s0 + n1 * s1 + n2 * s2
+    q0, q1, q2 = n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0
+    sp = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+    cg = d / depth
+    sg = math.sqrt((depth - d) * (depth + d)) / depth
+    cF, sF = cp * cg - sp * sg, sp * cg + cp * sg
+    if not (cp > 0.0 and cF > 0.8775):  # Phi < 0.5
+        return fail
+    T = sF / cF
+    depth0 = A0 + rhoA + rhoB
+    c2 = 0.0
+    if arcA and arcB:  # (t_A.t_B)^2 = (nu_A.nu_B)^2 from L, rounded up (its rounding grows as rho_A / rho_B departs from 1)
+        c2 = min(1.0, max(0.0, (L - rhoA) * (L - rhoB) / (rhoA * rhoB)) + 1e-12 * (rhoA + rhoB) ** 2 / (rhoA * rhoB))
+    tA = math.inf if bA >= 0.5 * math.pi else sbA / cbA
+    tB = math.inf if bB >= 0.5 * math.pi else sbB / cbB
+    x = min(tA, tB, T)
+    kap = 1.0 / (1.0 + math.sqrt(1.0 + x * x))
+    a = _least_gain(kap * rhoA, kap * rhoB, arcA, arcB, c2) - 0.5 * depth0
+    # eps = depth0 - (r + slack): the set's own rounding (depth0 - depth), or what the quadratic needs to stay >= 0
+    if a > 0.0 and B0 < 2.0 * a * x:  # its least value inside [0, x]
+        need = B0 * B0 / (4.0 * a)
+    else:
+        need = B0 * x - a * x * x
+    eps = max(depth0 - depth, need)
+    r = depth0 - eps - slack
+    if not (r > lim and eps > 0.0):
+        return fail
+    for _ in range(TIGHT_STEPS):
+        if x >= T:
+            return r
+        mu = _least_gain(rhoA * _arc_gain(x, bA, cbA, sbA), rhoB * _arc_gain(x, bB, cbB, sbB), arcA, arcB, c2)
+        # mu holds up to where the right side reaches it (B0 x + depth0 x^2 / 2 = mu + eps)
+        x2 = 2.0 * (mu + eps) / (B0 + math.sqrt(B0 * B0 + 2.0 * depth0 * (mu + eps)))
+        if not x2 > x * (1.0 + 1e-3):  # (no progress: the bound falls short, or barely holds)
+            return fail
+        x = x2
+    return fail
+
+
+@kernel(inline="always")
+def pair_reach(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floor):
+    """torus_pair_lift, or where that does not reach the set's depth, tight_pair_lift."""
+    r = torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor)
+    if r >= depth - slack:
+        return r
+    return max(r, tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floor))
+
+
 @kernel
 def _keep_set(work, kind, sgn, depth, p1, s1, p2, s2, p3, y1, y2):
     """The deepest set found: a cylinder (kind 1: m, a, e, rho, azimuth, y1, y2) or a ball segment (kind 2:
@@ -654,8 +753,9 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
         p2 = (work[row + 2, 0], work[row + 2, 1], work[row + 2, 2])
         p3 = (work[row + 3, 0], work[row + 3, 1], work[row + 3, 2])
         if kind == 3.0:
-            r = torus_pair_lift(_tori_at(work, row), fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R], work[row, 2],
-                                work[row, 3], n0, n1, n2, d, best)
+            r = pair_reach(_tori_at(work, row), fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R],
+                           work[row + 4, 0] >= iA[IDX_V] + iA[IDX_F], work[row + 4, 1] >= iB[IDX_V] + iB[IDX_F],
+                           work[row, 2], work[row, 3], n0, n1, n2, d, best)
             u0, u1, u2, depth = p1[0], p1[1], p1[2], work[row, 2]
         elif kind == 1.0:
             r, u0, u1, u2, depth = cylinder_reach(p1, p2, work[row + 1, 3], work[row + 2, 3],
@@ -759,7 +859,7 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
             if kind == 3.0 and work[EPA_ROW + EPA_SET + 4, 0] == p and work[EPA_ROW + EPA_SET + 4, 1] == q:
                 continue  # the kept set, tried above
             k, depth, slack = _tori_set(work, pair, p, q, rhoA, rhoB, n0, n1, n2)
-            r = torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, best)
+            r = pair_reach(k, rhoA, rhoB, p >= VA + iA[IDX_F], q >= VB + iB[IDX_F], depth, slack, n0, n1, n2, d, best)
             if r > best:
                 best, bu0, bu1, bu2, bdepth, bcore = r, k[0], k[1], k[2], depth, 1
                 row = EPA_ROW + EPA_SET
