@@ -550,10 +550,11 @@ def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floo
     |y| = x = tan phi): h_K(s + y) >= depth0 - B0 x + rho_A H_A(y.t_A) + rho_B H_B(y.t_B) (depth0 = A0 +
     rho_A + rho_B; a cap's term takes |y|), and as H(sqrt(u)) is concave with H(0) = 0, H(y.t) >= H(x) (y.t)^2
     / x^2, so the two terms hold mu(x) = _least_gain(rho_A H_A(x), rho_B H_B(x)), which grows with x. h_K(v) =
-    h_K(s + y) / sqrt(1 + x^2) >= r + slack where mu(x) >= B0 x + depth0 x^2 / 2 - eps, eps = depth0 - r - slack
-    (sqrt(1 + x^2) <= 1 + x^2 / 2; the slack is for rounding, as torus_pair_lift's). Up to the first arc's end (x1) the arcs' terms are at least x^2 / (1 + sqrt(1 + x1^2)), a
-    quadratic checked in closed form; beyond, as mu grows with x and so does the right side, each step goes
-    from x to where the right side reaches mu(x), out to tan Phi (Phi = angle(n, s) + acos(d / depth), as
+    h_K(s + y) / sqrt(1 + x^2) >= r + slack where mu(x) >= B0 x + depth0 x^2 / 2 - eps, eps = depth0 - r -
+    slack (sqrt(1 + x^2) <= 1 + x^2 / 2; the slack is for rounding, as torus_pair_lift's). Up to the first
+    arc's end (x1) the arcs' terms are at least x^2 / (1 + sqrt(1 + x1^2)), a quadratic checked in closed
+    form; beyond, as mu grows with x and so does the right side, each step goes from x to where the right
+    side reaches mu(x), out to tan Phi (Phi = angle(n, s) + acos(d / depth), as
     torus_pair_lift)."""
     fail = -math.inf
     s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
@@ -571,7 +572,7 @@ def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floo
     T = sF / cF
     depth0 = A0 + rhoA + rhoB
     c2 = 0.0
-    if arcA and arcB:  # (t_A.t_B)^2 = (nu_A.nu_B)^2 from L, rounded up (its rounding grows as rho_A / rho_B departs from 1)
+    if arcA and arcB:  # (t_A.t_B)^2 = (nu_A.nu_B)^2 from L, rounded up (more as rho_A / rho_B departs from 1)
         c2 = min(1.0, max(0.0, (L - rhoA) * (L - rhoB) / (rhoA * rhoB)) + 1e-12 * (rhoA + rhoB) ** 2 / (rhoA * rhoB))
     tA = math.inf if bA >= 0.5 * math.pi else sbA / cbA
     tB = math.inf if bB >= 0.5 * math.pi else sbB / cbB
