@@ -112,6 +112,24 @@ def _segment_support(C, s, alpha, V, rho=RHO):
     return np.where(V @ s >= math.cos(alpha), V @ C + rho, best)
 
 
+def _least_over_cap(support, n, gamma, starts):
+    """The least of ``support`` (a function of a unit normal) over the normals within gamma of the unit n, searched
+    with Nelder-Mead from each normal in ``starts`` (the cap's normals as n + x q1 + y q2, |(x, y)| <= tan gamma)."""
+    q1 = _unit(np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]))
+    q2 = np.cross(n, q1)
+    lim = math.tan(gamma)
+
+    def h(xy):
+        x, y = xy
+        rr = math.hypot(x, y)
+        if rr > lim:
+            x, y = x * lim / rr, y * lim / rr
+        return support(_unit(n + x * q1 + y * q2))
+
+    return min(minimize(h, [(u @ q1) / (u @ n), (u @ q2) / (u @ n)], method="Nelder-Mead",
+                        options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 400}).fun for u in starts)
+
+
 def _normals_near(rng, n, gamma, toward, count=200):
     """Unit normals within gamma of n: its rim circle, the rim's point farthest from ``toward``, random ones inside."""
     q1 = _unit(np.cross(n, rng.normal(size=3)))
@@ -220,8 +238,8 @@ def _tori_support(A, B, V):
 def _crossing_tori(rng, s, depth, cos_planes, lat_a, lat_b, balls=(False, False), rhos=(RHO, RHO)):
     """Tori A and B (m, e, a) whose difference's support point along the unit s is depth s (so that s is its
     deepest normal), their arcs through s at latitudes lat (fractions of their half-angles), the arcs'
-    planes at angle acos(cos_planes); edges 2 to 20 cm (at most 1.6 rho); ball radii ``rhos``. A side with ``balls`` True is
-    instead the ball of its radius about m (e = 0, a = -1)."""
+    planes at angle acos(cos_planes); edges 2 to 20 cm (at most 1.6 rho); ball radii ``rhos``. A side with
+    ``balls`` True is instead the ball of its radius about m (e = 0, a = -1)."""
     q = _unit(np.cross(s, rng.normal(size=3)))
     q2 = math.sqrt(1.0 - cos_planes ** 2) * np.cross(s, q) + cos_planes * q
     out = []
@@ -289,23 +307,7 @@ def test_torus_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, bel
     V = _normals_near(rng, n, gamma, s)
     H = _tori_support(A, B, V)
     assert (H >= r - 1e-13).all()
-    # the least value over the cap, searched (the cap's normals as n + x q1 + y q2, |(x, y)| <= tan gamma)
-    q1 = _unit(np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]))
-    q2 = np.cross(n, q1)
-    lim = math.tan(gamma)
-
-    def h(xy):
-        x, y = xy
-        rr = math.hypot(x, y)
-        if rr > lim:
-            x, y = x * lim / rr, y * lim / rr
-        return _tori_support(A, B, _unit(n + x * q1 + y * q2))[0]
-
-    worst = V[np.argmin(H)]
-    starts = [(s @ q1) / (s @ n), (s @ q2) / (s @ n)], [(worst @ q1) / (worst @ n), (worst @ q2) / (worst @ n)]
-    for x0 in starts:
-        found = minimize(h, x0, method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 400})
-        assert found.fun >= r - 1e-13
+    assert _least_over_cap(lambda v: _tori_support(A, B, v)[0], n, gamma, (s, V[np.argmin(H)])) >= r - 1e-13
 
 
 def test_torus_pair_lift_reaches_faces_well_below_the_depth_and_refuses_parallel_edges():
@@ -422,21 +424,7 @@ def test_tight_pair_lift_holds_every_normal_the_ray_bound_leaves(seed, tilt, bel
     V = _normals_near(rng, n, gamma, s)
     H = _set_support(A, B, s, room, V, rhos)
     assert (H >= r - 1e-13).all()
-    q1 = _unit(np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]))
-    q2 = np.cross(n, q1)
-    lim = math.tan(gamma)
-
-    def h(xy):
-        x, y = xy
-        rr = math.hypot(x, y)
-        if rr > lim:
-            x, y = x * lim / rr, y * lim / rr
-        return _set_support(A, B, s, room, _unit(n + x * q1 + y * q2), rhos)[0]
-
-    worst = V[np.argmin(H)]
-    found = minimize(h, [(worst @ q1) / (worst @ n), (worst @ q2) / (worst @ n)], method="Nelder-Mead",
-                     options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 400})
-    assert found.fun >= r - 1e-13
+    assert _least_over_cap(lambda v: _set_support(A, B, s, room, v, rhos)[0], n, gamma, (V[np.argmin(H)],)) >= r - 1e-13
 
 
 def test_tight_pair_lift_reaches_faces_the_sinusoid_bound_refuses():

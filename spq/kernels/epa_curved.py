@@ -453,6 +453,21 @@ def _beta(k, rhoA, rhoB, phi, c, s):
     return K + P * c + Q * s, Q * c - P * s, K, P, Q
 
 
+@kernel(inline="always")
+def _far_angle(s0, s1, s2, n0, n1, n2, d, depth):
+    """(cos Phi, sin Phi), Phi = angle(n, s) + acos(d / depth): the farthest a face's cone (unit normal n,
+    offset 0 < d < depth) reaches from the unit s, past which the ray through the face gives depth or more;
+    cos Phi = -2 where n faces away from s."""
+    cp = n0 * s0 + n1 * s1 + n2 * s2
+    if not cp > 0.0:
+        return -2.0, 0.0
+    q0, q1, q2 = n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0
+    sp = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+    cg = d / depth
+    sg = math.sqrt((depth - d) * (depth + d)) / depth
+    return cp * cg - sp * sg, sp * cg + cp * sg
+
+
 @kernel
 def torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor):
     """The offset r to which a face (unit normal n, offset d > 0) is certified by the tori's bound
@@ -469,13 +484,8 @@ def torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor):
     s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
     if not (depth > lim and d > 0.0):
         return fail
-    cp = n0 * s0 + n1 * s1 + n2 * s2
-    q0, q1, q2 = n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0
-    sp = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
-    cg = d / depth
-    sg = math.sqrt((depth - d) * (depth + d)) / depth
-    cF, sF = cp * cg - sp * sg, sp * cg + cp * sg  # Phi = psi + gamma
-    if not (cp > 0.0 and cF > 0.8775):  # Phi < 0.5
+    cF, sF = _far_angle(s0, s1, s2, n0, n1, n2, d, depth)
+    if not cF > 0.8775:  # Phi < 0.5
         return fail
     Phi = math.atan2(sF, cF)
     least = _beta(k, rhoA, rhoB, Phi, cF, sF)[0]
@@ -561,13 +571,8 @@ def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floo
     lim = max(d, floor)
     if not (bA >= 0.0 and bB >= 0.0 and d > 0.0 and depth - slack > lim):
         return fail
-    cp = n0 * s0 + n1 * s1 + n2 * s2
-    q0, q1, q2 = n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0
-    sp = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
-    cg = d / depth
-    sg = math.sqrt((depth - d) * (depth + d)) / depth
-    cF, sF = cp * cg - sp * sg, sp * cg + cp * sg
-    if not (cp > 0.0 and cF > 0.8775):  # Phi < 0.5
+    cF, sF = _far_angle(s0, s1, s2, n0, n1, n2, d, depth)
+    if not cF > 0.8775:  # Phi < 0.5
         return fail
     T = sF / cF
     depth0 = A0 + rhoA + rhoB
