@@ -30,18 +30,14 @@ Curved sets inside D close the bound instead:
   (epa_caps does the same between two spheres, once a run is long; here the other side's point needs
   no region of its own.)
 - Between two cores, a torus of each: each spindle holds its meridian arcs, so D holds the difference
-  of A's arc and B's in the planes of their axes and a normal s. About s, D's support is bounded below
-  in closed form at every angle from s (torus_pair_set: the arcs' radius is lost only across their
-  planes, and past their ends), s found by Newton's steps; a face is certified where that bound holds
-  over its cone (torus_pair_lift). On kuka_link_4's 2,036 overlapping STP-STP poses (two fifths of
-  them end between two tori) the iterations fall from 36.1 to 27.4 (docs/notes/speed-45.md, stop 95).
-  A big sphere takes an arc's place as its cap of normals about s (or -s), which loses nothing across
-  s: a torus and a big sphere, or two big spheres (a sixth of those poses), end in 26 to 29
-  iterations instead of 36 to 42 (27.4 -> 25.7 on all of them, stop 96); at such a corner the sphere's
-  segment less the other's point is not tried. That bound takes the angle past both ends and the loss
-  across both planes at once, which no one direction has; where it falls short, tight_pair_lift bounds
-  the set's own support on the tangent plane at s (each arc's term convex and Huber-like), out to the
-  face's cone step by step: 25.7 -> 23.0 iterations (stop 97).
+  of A's arc and B's in the planes of their axes and a normal s, s found by Newton's steps toward that
+  set's deepest normal (torus_pair_set). A big sphere takes an arc's place as its cap of normals about s
+  (or -s), which loses nothing across s. On the tangent plane at s, each arc's support grows as a convex,
+  Huber-like term along its tangent, and a cap's along every direction, so D's support is bounded below
+  out to a face's cone step by step (tight_pair_lift). On kuka_link_4's 2,036 overlapping STP-STP poses
+  (two fifths of them end between two curved patches) the iterations fall from 36.1 without it to 23.0
+  (docs/notes/speed-45.md, stops 95 to 98). At such a corner the sphere's segment less the other's point
+  is not tried.
 
 A face F (unit normal n, offset d) is certified to offset r when D's support is at least r along
 every normal of its cone (the EPA's bound is then the least certified offset). The cylinder does it
@@ -333,33 +329,25 @@ def _side_about(m0, m1, m2, e0, e1, e2, a, rho, u0, u1, u2):
 
 @kernel
 def torus_pair_set(mA, eA, aA, rhoA, mB, eB, aB, rhoB, n0, n1, n2, steps):
-    """A lower bound on D's support about the deepest normal of two cores' curved patches, A's (a torus:
-    centre m, unit axis e, circle radius a, ball radius rho; or, where a < 0, the ball of radius rho
-    about m) less B's (in A's frame), from a unit normal n near it (``steps`` Newton steps; with none,
-    about n itself):
-    (k, depth, slack), k = (s0, s1, s2, A0, B0, bA, bB, L, cos bA, sin bA, cos bB, sin bB) the terms of
-    beta below (torus_pair_lift), depth = beta(0) less rounding slack, or -inf where the arcs or
-    Newton's steps fail. A ball's b is inf (cos 1, sin 0): a big sphere's cap narrows it (with_room).
+    """The set two cores' curved patches give D about its deepest normal, A's patch (a torus: centre m, unit
+    axis e, circle radius a, ball radius rho; or, where a < 0, the ball of radius rho about m) less B's (in A's
+    frame), from a unit normal n near it (``steps`` Newton steps; with none, about n itself): (k, depth, slack),
+    k = (s0, s1, s2, A0, B0, bA, bB, c2, cos bA, sin bA, cos bB, sin bB) the terms tight_pair_lift bounds the
+    set's support by, depth its support along s less rounding slack, or -inf where the arcs or Newton's steps
+    fail. A ball's b is inf (cos 1, sin 0): a big sphere's cap narrows it (with_room).
 
     Each torus's spindle holds its meridian arcs, so D holds K = (c_A + rho_A G_A) - (c_B + rho_B G_B),
-    G_A the great-circle arc of A's unit normals in the plane of e_A and a unit s, G_B B's in the plane
-    of e_B and -s (_arc_about), or the whole sphere of normals for a ball, whose support along a unit v
-    is C.v + rho_A |P_A v| cos(zeta_A) + rho_B |P_B v| cos(zeta_B), C = c_A - c_B, P the projection on
-    the arc's plane (the identity for a ball) and zeta its angle past the arc's end. At an angle phi
-    from s in any direction t: C.v >= A0 cos phi - B0 sin phi (A0 = C.s, B0 = |C - A0 s|); the in-plane
-    angle moves by at most phi, so zeta_X <= max(0, phi - b_X); and |P_X v|^2 = 1 - sin^2(phi)
-    (nu_X.t)^2 with the planes' unit normals nu_X across s, so that rho_A |P_A v| + rho_B |P_B v| >=
-    rho_A + rho_B - L (1 - cos phi), L the greater eigenvalue of the arcs' rho_X nu_X nu_X^T summed (0
-    for two balls; sqrt(1 - x) >= 1 - x / (1 + cos phi) for x <= sin^2 phi). So D's support at angle phi
-    from s is at least beta(phi) = A0 cos phi - B0 sin phi + rho_A cos zeta_A + rho_B cos zeta_B - L (1 -
-    cos phi).
+    G_A the great-circle arc of A's unit normals in the plane of e_A and the unit s, G_B B's in the plane
+    of e_B and -s (_arc_about), or the whole sphere of normals for a ball. K's support along s is A0 +
+    rho_A cos(zeta_A) + rho_B cos(zeta_B), C = c_A - c_B, A0 = C.s, zeta_X = max(0, -b_X) the angle of s
+    past an arc's end (b_X: the room from s to it); B0 = |C - A0 s| is K's gradient across s, and c2 =
+    (nu_A.nu_B)^2 with the arcs' planes' unit normals nu_X across s.
 
     s is K's deepest normal, found by Newton's steps from n on the sphere (NEWTON_STEPS in the EPA; the
     tangential part of C is K's gradient there, rho_A T_A + rho_B T_B - h its Hessian, T_X = t_X t_X^T
     for an arc with tangent t_X at s, the identity for a ball): about n itself, B0 sin phi would cost
-    about rho times the square of n's error, far more than the tolerance. Across two arcs beta grows as
-    (rho (1 - c) - depth) phi^2 / 2 (c = |nu_A . nu_B|), so it reaches faces far below the depth where
-    the edges cross; along nearly parallel edges it reaches none. Two balls' deepest normal is -C / |C|."""
+    about rho times the square of n's error, far more than the tolerance. Two balls' deepest normal is
+    -C / |C|."""
     fail = ((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), -math.inf, 0.0)
     arcA, arcB = aA >= 0.0, aB >= 0.0
     s0, s1, s2 = n0, n1, n2
@@ -410,14 +398,13 @@ def torus_pair_set(mA, eA, aA, rhoA, mB, eB, aB, rhoB, n0, n1, n2, steps):
         sn = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
         s0, s1, s2 = s0 / sn, s1 / sn, s2 / sn
     B0 = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-    if arcA and arcB:
-        ca = min(1.0, abs(xA0 * xB0 + xA1 * xB1 + xA2 * xB2))
-        L = 0.5 * (rhoA + rhoB + math.sqrt((rhoA - rhoB) ** 2 + 4.0 * rhoA * rhoB * ca * ca))
-    else:
-        L = rhoA if arcA else (rhoB if arcB else 0.0)
+    c2 = 0.0
+    if arcA and arcB:  # (rounded up: the arcs' least gain falls as c2 rises)
+        ca = abs(xA0 * xB0 + xA1 * xB1 + xA2 * xB2)
+        c2 = min(1.0, ca * ca + 1e-15)
     scale = rhoA + rhoB + abs(C0) + abs(C1) + abs(C2)
     depth = A0 + rhoA * math.cos(max(0.0, -bA)) + rhoB * math.cos(max(0.0, -bB)) - SLACK * scale
-    k = (s0, s1, s2, A0, B0, bA, bB, L, math.cos(bA) if arcA else 1.0, math.sin(bA) if arcA else 0.0,
+    k = (s0, s1, s2, A0, B0, bA, bB, c2, math.cos(bA) if arcA else 1.0, math.sin(bA) if arcA else 0.0,
          math.cos(bB) if arcB else 1.0, math.sin(bB) if arcB else 0.0)
     return k, depth, SUPPORT_SLACK * scale
 
@@ -426,31 +413,12 @@ def torus_pair_set(mA, eA, aA, rhoA, mB, eB, aB, rhoB, n0, n1, n2, steps):
 def with_room(k, bA, bB):
     """torus_pair_set's terms k with the sides' ends b narrowed to bA, bB (>= 0; inf leaves a side as it
     is): a ball's to the cap of normals its big sphere holds about s (A's) or -s (B's)."""
-    s0, s1, s2, A0, B0, kA, kB, L, cA, sA, cB, sB = k
+    s0, s1, s2, A0, B0, kA, kB, c2, cA, sA, cB, sB = k
     if bA < kA:
         kA, cA, sA = bA, math.cos(bA), math.sin(bA)
     if bB < kB:
         kB, cB, sB = bB, math.cos(bB), math.sin(bB)
-    return s0, s1, s2, A0, B0, kA, kB, L, cA, sA, cB, sB
-
-
-@kernel(inline="always")
-def _beta(k, rhoA, rhoB, phi, c, s):
-    """(beta, its derivative, K, P, Q) at angle phi (cosine c, sine s): the piece of torus_pair_set's
-    bound that holds there, K + P cos + Q sin."""
-    s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
-    K, P, Q = -L, A0 + L, -B0
-    if phi > bA:
-        P += rhoA * cbA
-        Q += rhoA * sbA
-    else:
-        K += rhoA
-    if phi > bB:
-        P += rhoB * cbB
-        Q += rhoB * sbB
-    else:
-        K += rhoB
-    return K + P * c + Q * s, Q * c - P * s, K, P, Q
+    return s0, s1, s2, A0, B0, kA, kB, c2, cA, sA, cB, sB
 
 
 @kernel(inline="always")
@@ -466,57 +434,6 @@ def _far_angle(s0, s1, s2, n0, n1, n2, d, depth):
     cg = d / depth
     sg = math.sqrt((depth - d) * (depth + d)) / depth
     return cp * cg - sp * sg, sp * cg + cp * sg
-
-
-@kernel
-def torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor):
-    """The offset r to which a face (unit normal n, offset d > 0) is certified by the tori's bound
-    (torus_pair_set: k, depth, slack), or -inf where that is not above d and ``floor``.
-
-    The ray through the face gives D's support r or more beyond gamma = acos(d / r) from n, and the
-    rest of the face's cone lies within Phi = angle(n, s) + gamma of s. beta is one sinusoid between
-    the arcs' ends (zeta_X = 0 before b_X, phi - b_X after), so its least value on each piece is at an
-    end or at a trough, where its derivative turns from negative to positive (a piece is shorter than
-    pi). So the face holds r = min beta over [0, angle(n, s) + acos(d / depth)] (a smaller r only
-    narrows the range)."""
-    fail = -math.inf
-    lim = max(d, floor) + slack
-    s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
-    if not (depth > lim and d > 0.0):
-        return fail
-    cF, sF = _far_angle(s0, s1, s2, n0, n1, n2, d, depth)
-    if not cF > 0.8775:  # Phi < 0.5
-        return fail
-    Phi = math.atan2(sF, cF)
-    least = _beta(k, rhoA, rhoB, Phi, cF, sF)[0]
-    if not least > lim:  # (most refusals: the far end falls short)
-        return fail
-    # the cuts between pieces, ascending: 0, the arcs' ends within (0, Phi), Phi
-    a1, c1, z1 = (bA, cbA, sbA) if bA < bB else (bB, cbB, sbB)
-    a2, c2, z2 = (bB, cbB, sbB) if bA < bB else (bA, cbA, sbA)
-    lo, clo, slo = 0.0, 1.0, 0.0
-    for i in range(3):
-        if i == 0:
-            hi, chi, shi = a1, c1, z1
-        elif i == 1:
-            hi, chi, shi = a2, c2, z2
-        else:
-            hi, chi, shi = Phi, cF, sF
-        if not hi > lo:
-            continue
-        if hi > Phi:
-            hi, chi, shi = Phi, cF, sF
-        v_lo, d_lo, K, P, Q = _beta(k, rhoA, rhoB, 0.5 * (lo + hi), clo, slo)
-        least = min(least, v_lo)
-        if d_lo < 0.0 and Q * chi - P * shi > 0.0:  # a trough inside the piece
-            least = min(least, K - math.sqrt(P * P + Q * Q))
-        lo, clo, slo = hi, chi, shi
-        if lo >= Phi:
-            break
-    r = least - slack
-    if r > d and r > floor:
-        return r
-    return fail
 
 
 TIGHT_STEPS = 40  # tight_pair_lift's most steps in tan(phi) beyond the arcs' quadratic part (more: refused)
@@ -535,7 +452,7 @@ def _arc_gain(x, b, cb, sb):
 @kernel(inline="always")
 def _least_gain(aA, aB, arcA, arcB, c2):
     """The least of aA (y.t_A)^2 + aB (y.t_B)^2 over unit y across s, an arc's term along its tangent t_X and a
-    ball's aX |y|^2 (c2 = (t_A.t_B)^2): the least eigenvalue for two arcs (as det / the greater, without
+    ball's aX |y|^2 (c2 = (t_A.t_B)^2 = (nu_A.nu_B)^2, t_X = nu_X x s): the least eigenvalue for two arcs (as det / the greater, without
     cancellation), the ball's weight against an arc, the sum for two balls."""
     if arcA and arcB:
         big = 0.5 * (aA + aB + math.sqrt((aA - aB) ** 2 + 4.0 * aA * aB * c2))
@@ -554,20 +471,20 @@ def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floo
     that is not above d and ``floor``: the set's depth less slack, or less where the gradient B0 that Newton's
     steps leave at s needs it.
 
-    beta (torus_pair_lift) takes the angle past both arcs' ends and the loss across both planes at once,
-    which no one direction has: about s, K's least support falls below the depth at 1e-2 rad where K's own
-    stays above it out to 0.2 (docs/notes/speed-45.md, stop 96). Here, on the tangent plane at s (v = s + y,
+    The bound works on the tangent plane at s (v = s + y,
     |y| = x = tan phi): h_K(s + y) >= depth0 - B0 x + rho_A H_A(y.t_A) + rho_B H_B(y.t_B) (depth0 = A0 +
     rho_A + rho_B; a cap's term takes |y|), and as H(sqrt(u)) is concave with H(0) = 0, H(y.t) >= H(x) (y.t)^2
     / x^2, so the two terms hold mu(x) = _least_gain(rho_A H_A(x), rho_B H_B(x)), which grows with x. h_K(v) =
     h_K(s + y) / sqrt(1 + x^2) >= r + slack where mu(x) >= B0 x + depth0 x^2 / 2 - eps, eps = depth0 - r -
-    slack (sqrt(1 + x^2) <= 1 + x^2 / 2; the slack is for rounding, as torus_pair_lift's). Up to the first
-    arc's end (x1) the arcs' terms are at least x^2 / (1 + sqrt(1 + x1^2)), a quadratic checked in closed
-    form; beyond, as mu grows with x and so does the right side, each step goes from x to where the right
-    side reaches mu(x), out to tan Phi (Phi = angle(n, s) + acos(d / depth), as
-    torus_pair_lift)."""
+    slack (sqrt(1 + x^2) <= 1 + x^2 / 2; the slack is for rounding). Up to the first arc's end (x1) the arcs'
+    terms are at least x^2 / (1 + sqrt(1 + x1^2)), a quadratic checked in closed form; beyond, as mu grows with
+    x and so does the right side, each step goes from x to where the right side reaches mu(x), out to tan Phi.
+    Phi = angle(n, s) + acos(d / depth) (_far_angle): the ray through the face gives D's support r or more
+    beyond gamma = acos(d / r) from n, and the rest of the face's cone lies within Phi of s (a smaller r only
+    narrows it). Across two arcs the bound grows as (rho (1 - c) - depth) x^2 / 2 (c = |nu_A.nu_B|), so it
+    reaches faces far below the depth where the edges cross, and little along nearly parallel ones."""
     fail = -math.inf
-    s0, s1, s2, A0, B0, bA, bB, L, cbA, sbA, cbB, sbB = k
+    s0, s1, s2, A0, B0, bA, bB, c2, cbA, sbA, cbB, sbB = k
     lim = max(d, floor)
     if not (bA >= 0.0 and bB >= 0.0 and d > 0.0 and depth - slack > lim):
         return fail
@@ -576,9 +493,6 @@ def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floo
         return fail
     T = sF / cF
     depth0 = A0 + rhoA + rhoB
-    c2 = 0.0
-    if arcA and arcB:  # (t_A.t_B)^2 = (nu_A.nu_B)^2 from L, rounded up (more as rho_A / rho_B departs from 1)
-        c2 = min(1.0, max(0.0, (L - rhoA) * (L - rhoB) / (rhoA * rhoB)) + 1e-12 * (rhoA + rhoB) ** 2 / (rhoA * rhoB))
     tA = math.inf if bA >= 0.5 * math.pi else sbA / cbA
     tB = math.inf if bB >= 0.5 * math.pi else sbB / cbB
     x = min(tA, tB, T)
@@ -603,15 +517,6 @@ def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floo
             return fail
         x = x2
     return fail
-
-
-@kernel(inline="always")
-def pair_reach(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floor):
-    """torus_pair_lift, or where that does not reach the set's depth, tight_pair_lift."""
-    r = torus_pair_lift(k, rhoA, rhoB, depth, slack, n0, n1, n2, d, floor)
-    if r >= depth - slack:
-        return r
-    return max(r, tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floor))
 
 
 @kernel
@@ -747,7 +652,7 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
     core's point is curved too, their pair's set below); where it was a torus and the other side is a
     polytope, the torus's cylinder swept between two distinct points of the polytope among the
     corners; where both of a corner's points lie on curved patches (two cores: tori or big spheres),
-    their arcs' or caps' bound (torus_pair_lift; the last pair's bound is reused, _tori_set). u (x's
+    their arcs' or caps' bound (tight_pair_lift; the last pair's set is reused, _tori_set). u (x's
     frame) and depth: the deepest normal and the depth of the set that gave r (depth -inf if none did);
     core: the side of its STP-BV (1 A, 2 B; 0 if none)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
@@ -762,7 +667,7 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
         p2 = (work[row + 2, 0], work[row + 2, 1], work[row + 2, 2])
         p3 = (work[row + 3, 0], work[row + 3, 1], work[row + 3, 2])
         if kind == 3.0:
-            r = pair_reach(_tori_at(work, row), fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R],
+            r = tight_pair_lift(_tori_at(work, row), fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R],
                            work[row + 4, 0] >= iA[IDX_V] + iA[IDX_F], work[row + 4, 1] >= iB[IDX_V] + iB[IDX_F],
                            work[row, 2], work[row, 3], n0, n1, n2, d, best)
             u0, u1, u2, depth = p1[0], p1[1], p1[2], work[row, 2]
@@ -868,7 +773,7 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
             if kind == 3.0 and work[EPA_ROW + EPA_SET + 4, 0] == p and work[EPA_ROW + EPA_SET + 4, 1] == q:
                 continue  # the kept set, tried above
             k, depth, slack = _tori_set(work, pair, p, q, rhoA, rhoB, n0, n1, n2)
-            r = pair_reach(k, rhoA, rhoB, p >= VA + iA[IDX_F], q >= VB + iB[IDX_F], depth, slack, n0, n1, n2, d, best)
+            r = tight_pair_lift(k, rhoA, rhoB, p >= VA + iA[IDX_F], q >= VB + iB[IDX_F], depth, slack, n0, n1, n2, d, best)
             if r > best:
                 best, bu0, bu1, bu2, bdepth, bcore = r, k[0], k[1], k[2], depth, 1
                 row = EPA_ROW + EPA_SET
