@@ -346,7 +346,7 @@ def _arc_set_support(T, s, side, V, rho=RHO):
 
 
 def _set_support(A, B, s, room, V, rhos=(RHO, RHO)):
-    """The support of the set torus_pair_set bounds, K = (A's arc, or its ball's cap of normals within ``room`` of
+    """The support of the set torus_pair_set gives, K = (A's arc, or its ball's cap of normals within ``room`` of
     s) less (B's arc, or its ball's cap within ``room`` of -s), ball radii ``rhos``, along the unit rows of V
     (points sampled)."""
     V = np.atleast_2d(V)
