@@ -452,8 +452,8 @@ def _arc_gain(x, b, cb, sb):
 @kernel(inline="always")
 def _least_gain(aA, aB, arcA, arcB, c2):
     """The least of aA (y.t_A)^2 + aB (y.t_B)^2 over unit y across s, an arc's term along its tangent t_X and a
-    ball's aX |y|^2 (c2 = (t_A.t_B)^2 = (nu_A.nu_B)^2, t_X = nu_X x s): the least eigenvalue for two arcs (as det / the greater, without
-    cancellation), the ball's weight against an arc, the sum for two balls."""
+    ball's aX |y|^2 (c2 = (t_A.t_B)^2 = (nu_A.nu_B)^2, t_X = nu_X x s): the least eigenvalue for two arcs (as
+    det / the greater, without cancellation), the ball's weight against an arc, the sum for two balls."""
     if arcA and arcB:
         big = 0.5 * (aA + aB + math.sqrt((aA - aB) ** 2 + 4.0 * aA * aB * c2))
         return aA * aB * (1.0 - c2) / big if big > 0.0 else 0.0
@@ -471,18 +471,17 @@ def tight_pair_lift(k, rhoA, rhoB, arcA, arcB, depth, slack, n0, n1, n2, d, floo
     that is not above d and ``floor``: the set's depth less slack, or less where the gradient B0 that Newton's
     steps leave at s needs it.
 
-    The bound works on the tangent plane at s (v = s + y,
-    |y| = x = tan phi): h_K(s + y) >= depth0 - B0 x + rho_A H_A(y.t_A) + rho_B H_B(y.t_B) (depth0 = A0 +
-    rho_A + rho_B; a cap's term takes |y|), and as H(sqrt(u)) is concave with H(0) = 0, H(y.t) >= H(x) (y.t)^2
-    / x^2, so the two terms hold mu(x) = _least_gain(rho_A H_A(x), rho_B H_B(x)), which grows with x. h_K(v) =
-    h_K(s + y) / sqrt(1 + x^2) >= r + slack where mu(x) >= B0 x + depth0 x^2 / 2 - eps, eps = depth0 - r -
-    slack (sqrt(1 + x^2) <= 1 + x^2 / 2; the slack is for rounding). Up to the first arc's end (x1) the arcs'
-    terms are at least x^2 / (1 + sqrt(1 + x1^2)), a quadratic checked in closed form; beyond, as mu grows with
-    x and so does the right side, each step goes from x to where the right side reaches mu(x), out to tan Phi.
-    Phi = angle(n, s) + acos(d / depth) (_far_angle): the ray through the face gives D's support r or more
-    beyond gamma = acos(d / r) from n, and the rest of the face's cone lies within Phi of s (a smaller r only
-    narrows it). Across two arcs the bound grows as (rho (1 - c) - depth) x^2 / 2 (c = |nu_A.nu_B|), so it
-    reaches faces far below the depth where the edges cross, and little along nearly parallel ones."""
+    The bound works on the tangent plane at s (v = s + y, |y| = x = tan phi): h_K(s + y) >= depth0 - B0 x + rho_A
+    H_A(y.t_A) + rho_B H_B(y.t_B) (depth0 = A0 + rho_A + rho_B; a cap's term takes |y|), and as H(sqrt(u)) is
+    concave with H(0) = 0, H(y.t) >= H(x) (y.t)^2 / x^2, so the two terms hold mu(x) = _least_gain(rho_A H_A(x),
+    rho_B H_B(x)), which grows with x. h_K(v) = h_K(s + y) / sqrt(1 + x^2) >= r + slack where mu(x) >= B0 x + depth0
+    x^2 / 2 - eps, eps = depth0 - r - slack (sqrt(1 + x^2) <= 1 + x^2 / 2; the slack is for rounding). Up to the
+    first arc's end (x1) the arcs' terms are at least x^2 / (1 + sqrt(1 + x1^2)), a quadratic checked in closed
+    form; beyond, as mu grows with x and so does the right side, each step goes from x to where the right side
+    reaches mu(x), out to tan Phi. Phi = angle(n, s) + acos(d / depth) (_far_angle): the ray through the face gives
+    D's support r or more beyond gamma = acos(d / r) from n, and the rest of the face's cone lies within Phi of s (a
+    smaller r only narrows it). Across two arcs the bound grows as (rho (1 - c) - depth) x^2 / 2 (c = |nu_A.nu_B|),
+    so it reaches faces far below the depth where the edges cross, and little along nearly parallel ones."""
     fail = -math.inf
     s0, s1, s2, A0, B0, bA, bB, c2, cbA, sbA, cbB, sbB = k
     lim = max(d, floor)
@@ -668,8 +667,8 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
         p3 = (work[row + 3, 0], work[row + 3, 1], work[row + 3, 2])
         if kind == 3.0:
             r = tight_pair_lift(_tori_at(work, row), fA[F_BIG_R] - fA[F_R], fB[F_BIG_R] - fB[F_R],
-                           work[row + 4, 0] >= iA[IDX_V] + iA[IDX_F], work[row + 4, 1] >= iB[IDX_V] + iB[IDX_F],
-                           work[row, 2], work[row, 3], n0, n1, n2, d, best)
+                                work[row + 4, 0] >= iA[IDX_V] + iA[IDX_F], work[row + 4, 1] >= iB[IDX_V] + iB[IDX_F],
+                                work[row, 2], work[row, 3], n0, n1, n2, d, best)
             u0, u1, u2, depth = p1[0], p1[1], p1[2], work[row, 2]
         elif kind == 1.0:
             r, u0, u1, u2, depth = cylinder_reach(p1, p2, work[row + 1, 3], work[row + 2, 3],
@@ -773,7 +772,8 @@ def face_certificate(pair, sides, work, iw, face, first, n0, n1, n2, d):
             if kind == 3.0 and work[EPA_ROW + EPA_SET + 4, 0] == p and work[EPA_ROW + EPA_SET + 4, 1] == q:
                 continue  # the kept set, tried above
             k, depth, slack = _tori_set(work, pair, p, q, rhoA, rhoB, n0, n1, n2)
-            r = tight_pair_lift(k, rhoA, rhoB, p >= VA + iA[IDX_F], q >= VB + iB[IDX_F], depth, slack, n0, n1, n2, d, best)
+            r = tight_pair_lift(k, rhoA, rhoB, p >= VA + iA[IDX_F], q >= VB + iB[IDX_F], depth, slack, n0, n1, n2, d,
+                                best)
             if r > best:
                 best, bu0, bu1, bu2, bdepth, bcore = r, k[0], k[1], k[2], depth, 1
                 row = EPA_ROW + EPA_SET
