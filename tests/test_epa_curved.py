@@ -412,3 +412,28 @@ def test_tight_pair_lift_reaches_faces_past_an_arcs_end():
                                          RHO, n[0], n[1], n[2], 2)
     assert abs(k[6] - 1e-3) < 1e-6  # B's room to its arc's end
     assert tight_pair_lift(k, RHO, RHO, True, True, set_depth, slack, n[0], n[1], n[2], d, d) >= depth - 2e-11
+
+
+def test_tight_pair_lift_reaches_the_depth_with_unequal_radii_and_caps():
+    """The lift is not only sound but reaches: crossing arcs of unequal radii, a big sphere's cap against an arc
+    (either side) and two caps, each a face 1e-5 of the 5 cm depth below it and tilted 1e-3 rad, are certified
+    to the depth (less rounding), and every normal of the face's cone has the set's sampled support at least
+    that (the independent check of the hypothesis test above, on the cases that must certify)."""
+    s = _unit(np.array([0.2, 0.7, -0.4]))
+    depth = 0.05
+    cases = (((0.2, 0.6), (False, False), math.inf), ((0.3, 2.0), (True, False), 0.02),
+             ((2.0, 0.3), (False, True), 0.02), ((0.6, 0.2), (True, True), 0.02))
+    for rhos, balls, room in cases:
+        rng = np.random.default_rng(3)
+        A, B = _crossing_tori(rng, s, depth, 0.5, 0.1, -0.2, balls, rhos)
+        n = _unit(s + 1e-3 * _unit(np.cross(s, [0.0, 0.0, 1.0])))
+        d = depth * (n @ s) * (1.0 - 1e-5)
+        k, set_depth, slack = torus_pair_set(tuple(A[0]), tuple(A[1]), A[2], rhos[0], tuple(B[0]), tuple(B[1]), B[2],
+                                             rhos[1], n[0], n[1], n[2], 2)
+        k = with_room(k, room if balls[0] else math.inf, room if balls[1] else math.inf)
+        r = tight_pair_lift(k, rhos[0], rhos[1], not balls[0], not balls[1], set_depth, slack, n[0], n[1], n[2], d, d)
+        assert depth - 2e-11 <= r <= depth, (rhos, balls)
+        sk = np.array(k[:3])
+        gamma = math.acos(d / r)
+        V = _normals_near(rng, n, gamma, sk)
+        assert (_set_support(A, B, sk, room, V, rhos) >= r - 1e-13).all(), (rhos, balls)
