@@ -123,6 +123,26 @@ def test_two_tori_facing_agree_with_the_plain_descent():
     assert checked >= 10, f"only {checked} poses with two tori facing"
 
 
+def test_two_stp_bvs_whose_patches_trade_places_settle_on_the_patches(link4):
+    # At these poses of the bench's set (kuka_link_4, random_poses seed 0) both sides' patches, stepping
+    # at once, cycled between a small sphere and its torus, or a big sphere and its torus, until the
+    # finish gave up and the full descent (36 to 49 iterations) settled the query. Taking turns after
+    # a few rounds, the finish settles them (at most 14 iterations, the hulls' search included), and
+    # each answer lies within the plain descent's bracket.
+    stp = STPBV.from_points(link4.vertices, 0.005, 2.0)
+    pa, pb = random_poses(20000, seed=0, translation_range=0.3)  # the bench's 20,000 (n sets the draw)
+    cycled = [92, 306, 347, 527, 653, 1089, 1312, 1350]
+    batch = spq.distances(stp, stp, pa[cycled], pb[cycled])
+    assert (batch.status == "separated").all()
+    assert (batch.iterations < 20).all(), batch.iterations
+    for j, i in enumerate(cycled):
+        st, upper, lower = plain_descent(stp, stp, pa[i], pb[i])
+        assert st == gjk.SEPARATED
+        assert lower - 1e-9 <= batch.distance[j] <= upper + 1e-9
+        assert batch.lower_bound[j] <= batch.distance[j]
+        assert abs(np.linalg.norm(batch.point_b[j] - batch.point_a[j]) - batch.distance[j]) <= 1e-12
+
+
 def test_torus_ball_against_a_segment_is_the_brute_force_nearest(link4):
     # Oracle: the torus patch's distance to a point y is the distance to the farthest point of its
     # centre circle minus R; sample the circle and the segment densely and take the best segment point.

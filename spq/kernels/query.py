@@ -112,6 +112,13 @@ from spq.kernels.stp_support import (
 LOOSE_REL_TOL = 1e-3
 LOOSE_REL_TOL_ONE_STP = 1e-6
 FINISH_ROUNDS = 8  # patch-pair corrections before falling back to the full descent
+# Two STP-BVs: both sides step at once, and near a boundary between a small sphere and its torus (or a
+# big sphere and its torus) on each side the pair can cycle, each side's step undoing the other's (1%
+# of kuka_link_4's separated pairs, each then paying the full descent, 36 iterations). After round
+# TURNS_FROM (from 0), while neither patch owns the last normal, the sides take turns (one steps, the
+# other keeps its patch), which breaks such a cycle; the rounds up to it are unchanged.
+FINISH_ROUNDS_TWO_STP = 12
+TURNS_FROM = 4
 
 
 @kernel
@@ -468,19 +475,27 @@ def finish_on_patches(pair, n, tol, warm, work,
     tmp = fscratch[2]
     dirv = fscratch[3]
     bp, lt, lh, pt, ph, nt, nh = -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # the torus search's state (_torus_step)
-    for _ in range(FINISH_ROUNDS):
+    two_stp = kA == STP and kB == STP
+    keep = 0  # the side (KNOWN_A, KNOWN_B) that keeps its patch this round, its turn to wait
+    for rnd in range(FINISH_ROUNDS_TWO_STP if two_stp else FINISH_ROUNDS):
         o0, o1, o2 = n0, n1, n2
         ca0 = ca1 = ca2 = cb0 = cb1 = cb2 = 0.0
         margin_a = margin_b = 0.0
         if kA == STP:
             q = _first_patch(iA, hint_a) if coherent and pa < 0 else -1
-            pa = q if q >= 0 else next_patch(fA, iA, pa, hint_a, not coherent, n0, n1, n2)
+            if q >= 0:
+                pa = q
+            elif keep != KNOWN_A:
+                pa = next_patch(fA, iA, pa, hint_a, not coherent, n0, n1, n2)
             ca0, ca1, ca2, margin_a = ball_of_patch(fA, iA, pa, n0, n1, n2)
             warm[0] = pa
         e0, e1, e2 = rot_to_b(R, -n0, -n1, -n2)
         if kB == STP:
             q = _first_patch(iB, hint_b) if coherent and pb < 0 else -1
-            pb = q if q >= 0 else next_patch(fB, iB, pb, hint_b, not coherent, e0, e1, e2)
+            if q >= 0:
+                pb = q
+            elif keep != KNOWN_B:
+                pb = next_patch(fB, iB, pb, hint_b, not coherent, e0, e1, e2)
             cb0, cb1, cb2, margin_b = ball_of_patch(fB, iB, pb, e0, e1, e2)
             warm[1] = pb
         k = 0  # the ball-ball case has no core simplex
@@ -558,6 +573,12 @@ def finish_on_patches(pair, n, tol, warm, work,
         elif _certify(pair, pa, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
                       known, out):
             return used
+        keep = 0
+        if two_stp and rnd >= TURNS_FROM and not overlap:
+            mb0, mb1, mb2 = rot_to_b(R, -m0, -m1, -m2)
+            if not in_region(fA, iA, _offsets(iA)[2], pa, m0, m1, m2) \
+                    and not in_region(fB, iB, _offsets(iB)[2], pb, mb0, mb1, mb2):
+                keep = KNOWN_A if rnd % 2 == 0 else KNOWN_B
         # the next direction, in the STP side's frame: its patch's ball against the other side's witness
         if kA == STP:
             p, fs, ist, c0, c1, c2 = pa, fA, iA, ca0, ca1, ca2
