@@ -519,7 +519,8 @@ def finish_on_patches(pair, n, tol, warm, work,
                 h0, h1, h2 = ca0, ca1, ca2
                 ca0, ca1, ca2, cb0, cb1, cb2 = ca0n, ca1n, ca2n, cb0n, cb1n, cb2n
                 qa0, qa1, qa2 = to_b(R, t, ca0, ca1, ca2)
-                if moved <= settled:
+                if moved <= settled or not two_tori:
+                    # with a fixed centre on one side, the other's far point facing it is final at once
                     break
             x0, x1, x2 = to_a(R, t, cb0, cb1, cb2)
             g0, g1, g2 = x0 - ca0, x1 - ca1, x2 - ca2
