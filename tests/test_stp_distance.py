@@ -126,9 +126,9 @@ def test_two_tori_facing_agree_with_the_plain_descent():
 def test_two_stp_bvs_whose_patches_trade_places_settle_on_the_patches(link4):
     # At these poses of the bench's set (kuka_link_4, random_poses seed 0) both sides' patches, stepping
     # at once, cycled between a small sphere and its torus, or a big sphere and its torus, until the
-    # finish gave up and the full descent (36 to 49 iterations) settled the query. Taking turns after
-    # a few rounds, the finish settles them (at most 14 iterations, the hulls' search included), and
-    # each answer lies within the plain descent's bracket.
+    # finish gave up and the full descent (30 to 49 iterations) settled the query. Taking turns after
+    # a few rounds, the finish settles them (5 to 11 iterations, the hulls' search included; the bound
+    # of 20 lies between), and each answer lies within the plain descent's bracket.
     stp = STPBV.from_points(link4.vertices, 0.005, 2.0)
     pa, pb = random_poses(20000, seed=0, translation_range=0.3)  # the bench's 20,000 (n sets the draw)
     cycled = [92, 306, 347, 527, 653, 1089, 1312, 1350]

@@ -451,7 +451,8 @@ def finish_on_patches(pair, n, tol, warm, work,
                       iscratch, fscratch, coherent, out, overlap, iprobe):
     """Try to settle the query on the balls of the STP patches facing along n (A's frame, A to B).
 
-    Each round takes the facing patches (one guided-march step from the last ones), solves the
+    Each round takes the facing patches (one guided-march step from the last ones; between two
+    STP-BVs, late rounds let one side step at a time, see TURNS_FROM), solves the
     problem between their balls (closed form between two balls; an exact GJK between a ball centre
     and a polytope), and certifies with the bodies' own supports along the new normal m: upper =
     |p_B - p_A| for points on the bodies, lower = the width of the slab between the support planes.
