@@ -27,7 +27,17 @@ def test_bench_stp_runs_stp_pairs_beside_pch(tmp_path):
                  "--out", str(tmp_path)]) == 0
     table = pd.read_csv(tmp_path / "bench_stp.csv")
     assert {"PCH-PCH", "STP-PCH", "STP-STP"} <= set(table.pair)
-    assert set(table[table.pair != "PCH-PCH"].engine) == {"spq"}
+    on_meshes = table["mode"].str.startswith("per-call on STP-BV mesh")
+    assert set(table[(table.pair != "PCH-PCH") & ~on_meshes].engine) == {"spq"}
+    # coal on the STP-BV's certified meshes (inside the STP-BV, within mesh_error_m of it), an external
+    # oracle for spq's exact signed distances: at or above them, by at most 1 (STP-PCH) or 2 (STP-STP) times
+    # the mesh's error, beside coal's own GJK/EPA tolerance
+    meshes = pd.read_csv(tmp_path / "bench_stp_meshes.csv")
+    assert len(meshes) == 2 * 2 * 2 and set(meshes.engine) == {"coal"}  # 2 pairs x 2 meshes x 2 pose sets
+    sides = meshes.pair.map({"STP-PCH": 1, "STP-STP": 2})
+    assert (meshes.diff_min_m >= -1e-6).all()
+    assert (meshes.diff_max_m <= sides * meshes.mesh_error_m + 1e-6).all()
+    assert (meshes.spq_batched_signed_speedup > 0).all() and (meshes.queries_per_s > 0).all()
 
 
 def test_bench_table1_writes_the_lower_triangle_with_the_paper_beside(tmp_path):

@@ -154,7 +154,16 @@ def bench_section(out: Path, suite: str, title: str) -> Section:
                            "signed distance on (EPA on overlaps); spq's 'signed' modes give the penetration depth too. "
                            "The overlapping rows time the poses coal finds overlapping, alone. " + "; ".join(rows) + "."],
                    [("Queries per second", table[["pair", "engine", "mode", "poses", "queries_per_s",
-                                                  "ratio_to_coal_pch", "features", "overlapping"]])])
+                                                  "ratio_to_coal_pch", "features", "overlapping"]]),
+                    *_mesh_table(out, suite)])
+
+
+def _mesh_table(out: Path, suite: str) -> list:
+    """The peers on the STP-BV's own meshes (spq bench stp), when the run made that table."""
+    if not (out / f"bench_{suite}_meshes.csv").exists():
+        return []
+    return [("The peers on the STP-BV's own meshes: spq's speed-up over them and their largest difference from "
+             "spq's exact signed distance", _read(out, f"bench_{suite}_meshes.csv"))]
 
 
 def support_section(out: Path) -> Section:

@@ -65,4 +65,23 @@ def run(config: Config) -> Output:
     out = Output(meta=meta, tables=[Table(f"bench_{config.kind}", f"Throughput ({config.kind})", table, notes)])
     out.lines = frame_lines(table[["pair", "engine", "mode", "poses", "queries_per_s", "ratio_to_coal_pch",
                                    "features", "overlapping"]])
+    meshes = bench.mesh_summary(table)
+    if len(meshes):
+        out.tables.append(Table(f"bench_{config.kind}_meshes", "The peers on the STP-BV's own meshes", meshes,
+                                MESH_NOTES))
+        out.lines += ["", *frame_lines(meshes[["pair", "poses", "engine", "mode", "features", "queries_per_s",
+                                               "spq_batched_signed_speedup", "spq_per_call_signed_speedup",
+                                               "diff_min_m", "diff_max_m"]])]
     return out
+
+
+MESH_NOTES = ("The peers have no STP-BV. Given the same smooth volume, their users mesh it: here the STP-BV's "
+              "certified mesh (STPBV.to_mesh: every vertex on the true surface, the mesh inside the STP-BV, "
+              "their Hausdorff distance at most mesh_error_m), at spq's default tolerance (1e-3 of the "
+              "bounding radius) and ten times finer, against the other side's hull (STP-PCH) or the same "
+              "mesh (STP-STP). Each peer per call, with signed distance on, timed in the same blocks as spq. "
+              "spq_*_speedup: spq's signed rate on the exact STP-BVs (batched, per call) over the peer's. "
+              "diff_min_m, diff_max_m: the least and largest of the peer's signed distance less spq's on the same "
+              "poses. The mesh lies inside the STP-BV, so an exact answer on it lies 0 to 1 (STP-PCH) or 2 "
+              "(STP-STP) times mesh_error_m above spq's; outside that range is the peer's own error (spq's is "
+              "within its 1e-10 m tolerance).")

@@ -19,6 +19,13 @@ from harness.suites.bench.timing import BLOCK, blocked_calls, blocked_times
 from harness.workloads.poses import random_poses
 
 BASELINE = ("PCH-PCH", "coal")
+# The peers that also run on the STP-BV's own meshes: the two fastest on PCH-PCH (fcl and bullet run 2 to 5
+# times slower than coal there, and a mesh of thousands of vertices only widens that).
+MESH_ENGINES = ("coal", "mujoco")
+# Hausdorff tolerances of those meshes, times the STP-BV's bounding radius: spq's default mesh
+# (STPBV.to_mesh) and one ten times finer.
+MESH_REL_TOLERANCES = (1e-3, 1e-4)
+MESH_MODE = "per-call on STP-BV mesh"  # the mode of a peer's row on the meshes: "<MESH_MODE> <tolerance> m"
 
 
 @dataclass
@@ -33,6 +40,7 @@ class BenchConfig:
     r: float = 0.005  # STP-BV radii (m), for the STP pairs
     R: float = 2.0
     pairs: list[str] = field(default_factory=lambda: ["PCH-PCH"])
+    mesh_rel_tolerances: tuple = MESH_REL_TOLERANCES  # () leaves the peers off the STP-BV's meshes
     workers: int = 1  # > 1: spq's batched rows also on this many threads (spq.workers), beside one thread's
 
 
@@ -101,6 +109,32 @@ def _threaded_modes(shape_a, shape_b, tol: float, rel_tol: float, workers: int) 
     return [(f"batched {workers} workers", batched(False)), (f"batched signed {workers} workers", batched(True))]
 
 
+def stp_meshes(stp, rel_tolerances) -> list[tuple[float, object]]:
+    """(tolerance in m, trimesh) for each relative tolerance: the STP-BV's certified mesh
+    (:meth:`spq.shapes.stpbv.STPBV.to_mesh`: every vertex on the true surface, the mesh inside the
+    STP-BV, their Hausdorff distance at most the tolerance). What a user of an engine without STP-BVs
+    gives it for the same smooth volume."""
+    radius = stp.bounding_radius()
+    return [(rel * radius, stp.to_mesh(rel * radius)) for rel in rel_tolerances]
+
+
+def _mesh_modes(pair_types, shapes: dict, engines: dict, rel_tolerances) -> tuple[list, dict]:
+    """The peers (MESH_ENGINES) on the STP-BV's meshes: ([(pair type, engine name, mode, prepared pair)],
+    {mode: (mesh vertices, certified Hausdorff bound in m)}). An STP side is the mesh, a PCH side the hull."""
+    stp_pairs = [p for p in pair_types if "STP" in p]
+    peers = [name for name in MESH_ENGINES if name in engines]
+    if not (stp_pairs and peers and rel_tolerances):
+        return [], {}
+    runs, info = [], {}
+    for tolerance, mesh in stp_meshes(shapes["STP"], rel_tolerances):
+        mode = f"{MESH_MODE} {tolerance:.1e} m"
+        info[mode] = (len(mesh.vertices), float(mesh.metadata["max_error"]))
+        for pair_type in stp_pairs:
+            a, b = (mesh if kind == "STP" else shapes[kind] for kind in pair_type.split("-"))
+            runs += [(pair_type, name, mode, engines[name].prepare(a, b)) for name in peers]
+    return runs, info
+
+
 def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.DataFrame:
     """Queries per second per pair type, engine and mode on two copies of one object, with the
     ratio to coal's PCH-PCH rate. External engines only run PCH-PCH (they have no STP-BV).
@@ -110,7 +144,12 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
     distance 0) and, in the modes named "signed", with signed=True. Every job runs on all poses
     (``poses`` = "all") and again on the overlapping ones alone ("overlapping": those coal's result
     calls overlapping), where a signed engine pays for its depth on every query; ratios are to coal's
-    PCH-PCH rate on the same poses."""
+    PCH-PCH rate on the same poses.
+
+    The peers have no STP-BV; with config.mesh_rel_tolerances they also run STP-PCH and STP-STP on the
+    STP-BV's certified meshes (stp_meshes), in the same blocks: rows "<MESH_MODE> <tolerance> m", with
+    the mesh's vertices and certified error, and their largest difference from spq's signed answers
+    (the exact STP-BV's) on the same poses."""
     from tqdm import tqdm
 
     from spq.workers import check_workers
@@ -140,6 +179,11 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
             for mode, fn in timing_modes(pair) + extra:
                 fn(poses_a[:8], poses_b[:8])  # compile and warm
                 modes[(pair_type, name, mode)] = fn
+        mesh_runs, mesh_info = _mesh_modes(config.pairs, shapes, engines, config.mesh_rel_tolerances)
+        for pair_type, name, mode, pair in mesh_runs:
+            prepared.append(pair)
+            pair.distance_loop(poses_a[:8], poses_b[:8])
+            modes[(pair_type, name, mode)] = pair.distance_loop
         overlapping = _overlapping(modes, poses_a, poses_b)
         subsets = {"all": (poses_a, poses_b)}
         if overlapping.any():
@@ -166,8 +210,48 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
             table.loc[here, "ratio_to_coal_pch"] = table.loc[here, "queries_per_s"] / base.iloc[0]
     table.insert(0, "object", config.object_name)
     table["features"] = table.pair.map(lambda p: "+".join(str(_feature_count(shapes[k])) for k in p.split("-")))
+    _add_mesh_columns(table, timed, mesh_info, shapes)
     table["seed"] = config.seed
     return table
+
+
+def _add_mesh_columns(table: pd.DataFrame, timed: dict, mesh_info: dict, shapes: dict) -> None:
+    """On the peers' rows on the STP-BV's meshes: features with the mesh's vertices for its STP side,
+    mesh_error_m (the mesh's certified Hausdorff bound), and the least and largest peer - spq over the
+    row's poses (diff_min_m, diff_max_m), against spq's batched signed answers on the same pair and
+    poses. The meshes lie inside the STP-BVs, so a peer exact on them reads 0 to 1 (STP-PCH) or 2
+    (STP-STP) times mesh_error_m above spq; outside that range is the peer's own error."""
+    table["mesh_error_m"] = np.nan
+    table["diff_min_m"] = np.nan
+    table["diff_max_m"] = np.nan
+    for i, row in table.iterrows():
+        if row["mode"] not in mesh_info:
+            continue
+        vertices, error = mesh_info[row["mode"]]
+        table.at[i, "features"] = "+".join(str(vertices) if k == "STP" else str(_feature_count(shapes[k]))
+                                           for k in row.pair.split("-"))
+        table.at[i, "mesh_error_m"] = error
+        exact = timed.get((row.pair, "spq", "batched signed", row.poses))
+        if exact is not None:
+            diff = np.concatenate(timed[(row.pair, row.engine, row["mode"], row.poses)][1]) - np.concatenate(exact[1])
+            table.at[i, "diff_min_m"], table.at[i, "diff_max_m"] = float(diff.min()), float(diff.max())
+
+
+def mesh_summary(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per peer on an STP-BV mesh (pair, poses, engine, mode): its rate beside spq's signed rates
+    on the exact STP-BV, and spq's speed-up over it (spq's rate / the peer's), batched and per call."""
+    mesh_rows = table[table["mode"].str.startswith(MESH_MODE)]
+    rows = []
+    for _, r in mesh_rows.iterrows():
+        spq_rate = {m: table.loc[(table.pair == r.pair) & (table.poses == r.poses) & (table.engine == "spq")
+                                 & (table["mode"] == m), "queries_per_s"] for m in ("batched signed", "per-call signed")}
+        rate = {m: float(v.iloc[0]) if len(v) else np.nan for m, v in spq_rate.items()}
+        rows.append({"pair": r.pair, "poses": r.poses, "engine": r.engine, "mode": r["mode"], "features": r.features,
+                     "mesh_error_m": r.mesh_error_m, "queries_per_s": r.queries_per_s,
+                     "spq_batched_signed_speedup": rate["batched signed"] / r.queries_per_s,
+                     "spq_per_call_signed_speedup": rate["per-call signed"] / r.queries_per_s,
+                     "diff_min_m": r.diff_min_m, "diff_max_m": r.diff_max_m})
+    return pd.DataFrame(rows)
 
 
 def _overlapping(modes: dict, poses_a: np.ndarray, poses_b: np.ndarray) -> np.ndarray:
