@@ -44,6 +44,26 @@ def test_pinocchio_distances_agree_with_spq(kuka):
         assert np.all(theirs[mine.status == "overlapping"] <= 1e-6)
 
 
+def test_pinocchio_on_auto_volumes_brackets_spq_auto_from_above_by_the_meshes_error():
+    """pinocchio (coal) on each pair's STP side as the STP-BV's certified mesh, which lies inside the
+    STP-BV within its error: an external oracle for spq's auto distances, at or above them by at most
+    the mesh's error (beside coal's 1e-6 m GJK tolerance)."""
+    scene = load_scene(RobotBenchConfig(robot="kuka_iiwa"), "auto")
+    shapes, errors = pp.stp_mesh_shapes(scene, 1e-3)
+    stp_sides = {i for pair, sides in zip(scene.pairs.tolist(), scene.pair_kinds) for i, s in zip(pair, sides)
+                 if s == "stp"}
+    assert stp_sides and set(shapes) == set(errors) == {i for i in stp_sides if scene.bodies[i].stp is not None}
+    peer = pp.build(scene, robot_files("kuka_iiwa").urdf, stp_shapes=shapes)
+    assert len(peer.geometry.geometryObjects) == len(scene.bodies) + len(shapes)
+    for q in random_configurations(scene.model, 20, 3):
+        mine = scene.distances(q, coherent=False)
+        theirs = peer.distances(peer.configuration(q))
+        separated = mine.status == "separated"
+        diff = theirs[separated] - mine.distance[separated]
+        assert diff.min() >= -1e-6 and diff.max() <= max(errors.values()) + 1e-6
+        assert np.all(theirs[mine.status == "overlapping"] <= max(errors.values()) + 1e-6)
+
+
 def test_unknown_variant_is_refused(kuka):
     scene, _ = kuka
     with pytest.raises(ValueError, match="variant"):

@@ -84,15 +84,21 @@ class PinocchioScene:
         return best
 
 
-def build(scene, urdf, variant: str = "default", tolerance: float = 1e-6) -> PinocchioScene:
+def build(scene, urdf, variant: str = "default", tolerance: float = 1e-6,
+          stp_shapes: dict | None = None) -> PinocchioScene:
     """The pinocchio peer of an spq Scene read from ``urdf``: its bodies' hulls (PCH; exact primitives
     where the scene has them, see coal_geometry) on the same links and offsets, its pairs.
-    ``variant``: a key of VARIANTS; ``tolerance``: coal's gjk_tolerance (m)."""
+    ``variant``: a key of VARIANTS; ``tolerance``: coal's gjk_tolerance (m).
+
+    stp_shapes: None, or {body index: coal shape} from :func:`stp_mesh_shapes`: then where a pair's side
+    is an STP-BV (Scene.pair_kinds), pinocchio gets that body's STP-BV mesh as a second geometry object
+    on the same link, so that each pair compares what spq's pair compares, up to the mesh's error."""
     pin, coal = _import()
     if variant not in VARIANTS:
         raise ValueError(f"unknown pinocchio variant {variant!r}; choose one of {sorted(VARIANTS)}")
     model = pin.buildModelFromUrdf(str(urdf))
     geometry = pin.GeometryModel()
+    placements = []
     for body in scene.bodies:
         link = scene.model.link_names[body.link]
         # a link's frame is a BODY frame: a joint of the same name has a frame too (anymal's LF_HAA)
@@ -103,7 +109,11 @@ def build(scene, urdf, variant: str = "default", tolerance: float = 1e-6) -> Pin
         placement = frame.placement * pin.SE3(body.offset[:3, :3].copy(), body.offset[:3, 3].copy())
         geometry.addGeometryObject(pin.GeometryObject(body.name, frame.parentJoint, fid, placement,
                                                       coal_geometry(body)))
-    for a, b in np.asarray(scene.pairs).tolist():
+        placements.append((frame.parentJoint, fid, placement))
+    objects = {i: geometry.addGeometryObject(pin.GeometryObject(f"{scene.bodies[i].name}#stp", *placements[i], shape))
+               for i, shape in (stp_shapes or {}).items()}
+    for (a, b), sides in zip(np.asarray(scene.pairs).tolist(), scene.pair_kinds):
+        a, b = (objects.get(i, i) if side == "stp" else i for i, side in zip((a, b), sides))
         geometry.addCollisionPair(pin.CollisionPair(int(a), int(b)))
     gdata = pin.GeometryData(geometry)
     gjk_variant, guess = VARIANTS[variant]
@@ -124,6 +134,27 @@ def build(scene, urdf, variant: str = "default", tolerance: float = 1e-6) -> Pin
     idx, src, mult, off, cont = (np.array(c) for c in zip(*rows))
     return PinocchioScene(model, model.createData(), geometry, gdata, idx.astype(np.int64), src.astype(np.int64),
                           mult.astype(np.float64), off.astype(np.float64), cont.astype(bool), variant)
+
+
+def stp_mesh_shapes(scene, rel_tolerance: float) -> tuple[dict, dict]:
+    """({body index: coal.Convex}, {body index: certified error in m}) for the bodies that are an STP
+    side of some pair of ``scene``: their STP-BVs' certified meshes (STPBV.to_mesh: inside the STP-BV,
+    within rel_tolerance times its bounding radius of it, in the hull's frame). A body without an
+    STP-BV (an exact sphere) is left out and keeps its own shape. The first dict is :func:`build`'s
+    stp_shapes."""
+    from harness.engines.coal_engine import convex_from_mesh
+
+    stp_sides = {i for pair, sides in zip(np.asarray(scene.pairs).tolist(), scene.pair_kinds)
+                 for i, side in zip(pair, sides) if side == "stp"}
+    shapes, errors = {}, {}
+    for i in sorted(stp_sides):
+        stp = scene.bodies[i].stp
+        if stp is None:
+            continue
+        mesh = stp.to_mesh(rel_tolerance * stp.bounding_radius())
+        shapes[i] = convex_from_mesh(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces))
+        errors[i] = float(mesh.metadata["max_error"])
+    return shapes, errors
 
 
 def coal_geometry(body):

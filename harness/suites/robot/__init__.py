@@ -92,7 +92,11 @@ def run(config: Config) -> Output:
               f"{rb.TIMING_BLOCK} configurations, every side on a block before any runs the next, {config.repeats} "
               "rounds, each side's least time per block summed. spq_*_speedup: pinocchio's time / spq's. max_abs_diff_vs_spq_m: over the "
               "pair results spq's PCH run calls separated; overlap_disagreements: one side below -1e-6 m, the "
-              "other above 1e-6 m.")]
+              "other above 1e-6 m. The variants 'on auto's volumes' run the same job as spq's auto: each pair's "
+              "STP side as that body's certified STP-BV mesh (STPBV.to_mesh at "
+              f"{rb.STP_MESH_REL_TOLERANCE:g} of its bounding radius; inside the STP-BV, within stp_mesh_error_m of "
+              "it at most), compared with spq's auto results: on separated pairs an exact answer lies 0 to "
+              "stp_mesh_error_m above spq's (diff_min_m, diff_max_m: pinocchio less spq).")]
     out.lines = [*frame_lines(tables["kinematics"]), *frame_lines(tables["signed"]),
                  *frame_lines(tables["scene"][["policy", "configurations", "mode", "pruning_m", "ms_per_config",
                                                "pairs_per_s", "mean_iterations", "median_min_distance_m",

@@ -240,13 +240,23 @@ def cold_beside_pinocchio(scenes: dict, peers: dict, qs: np.ndarray, q_pin, repe
     return {name: timed[0] for name, timed in blocked_times(jobs, repeats, block).items()}, outs
 
 
+STP_MESH_REL_TOLERANCE = 1e-3  # pinocchio's STP-BV meshes for auto's volumes, times each one's bounding radius
+ON_AUTO_VOLUMES = " on auto's volumes"  # the suffix of a pinocchio variant given auto's STP sides as meshes
+
+
 def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_out: np.ndarray) -> pd.DataFrame:
     """pinocchio.computeDistances (one C++ call per configuration over every pair, forward kinematics
     included, coal.Convex hulls on the same links) in each of its coal GJK variants, timed beside
     spq's cold pch and auto runs in blocks of configurations (timing.blocked_times), and its
     distances against spq's PCH results (spq_out, cold at qs): separated pairs' largest difference,
     and overlap verdicts that disagree outside a 1e-6 m band. An empty table's single row says why
-    pinocchio did not run."""
+    pinocchio did not run.
+
+    With an auto scene, each variant also runs the same job as spq's auto ("<variant> on auto's
+    volumes"): each pair's STP side as that body's certified STP-BV mesh (pinocchio_peer.stp_mesh_shapes,
+    STP_MESH_REL_TOLERANCE), compared with spq's auto results; the meshes lie inside the STP-BVs, so on
+    separated pairs an exact answer lies 0 to stp_mesh_error_m (the largest mesh's certified error)
+    above spq's (diff_min_m, diff_max_m: pinocchio less spq)."""
     from datasets.robots import robot_files
     from harness.engines import pinocchio_peer as pp
 
@@ -256,24 +266,37 @@ def pinocchio_table(config: RobotBenchConfig, scenes: dict, qs: np.ndarray, spq_
         return pd.DataFrame([{"engine": "pinocchio", "status": f"not run: {exc}"}])
     urdf = robot_files(config.robot).urdf
     peers = {variant: pp.build(scenes["pch"], urdf, variant) for variant in pp.VARIANTS}
+    mesh_errors = {}
+    if "auto" in scenes:  # the same job as spq's auto: the STP sides as the STP-BVs' meshes
+        auto = scenes["auto"]
+        if not np.array_equal(np.asarray(auto.pairs), np.asarray(scenes["pch"].pairs)):
+            raise ValueError("the auto and pch scenes of the pinocchio table must have the same pairs")
+        shapes, mesh_errors = pp.stp_mesh_shapes(auto, STP_MESH_REL_TOLERANCE)
+        peers.update({f"{variant}{ON_AUTO_VOLUMES}": pp.build(auto, urdf, variant, stp_shapes=shapes)
+                      for variant in pp.VARIANTS})
     q_pin = np.array([peers["default"].configuration(q) for q in qs])
     spq_sides = {p: scenes[p] for p in ("pch", "auto") if p in scenes}
-    best, _ = cold_beside_pinocchio(spq_sides, peers, qs, q_pin, config.repeats)
-    spq_d = spq_out[:, :, OUT_DISTANCE]
-    separated = spq_out[:, :, OUT_STATUS] == SEPARATED
+    best, outs = cold_beside_pinocchio(spq_sides, peers, qs, q_pin, config.repeats)
     rows = []
     for variant, peer in peers.items():
+        on_auto = variant.endswith(ON_AUTO_VOLUMES)
+        reference = outs["auto"] if on_auto else spq_out  # spq's cold results on the same volumes
+        spq_d = reference[:, :, OUT_DISTANCE]
+        separated = reference[:, :, OUT_STATUS] == SEPARATED
         d = np.array([peer.distances(q) for q in q_pin])
-        diff = np.abs(d - spq_d)[separated]
+        diff = (d - spq_d)[separated]
         band = 1e-6
         disagree = ((spq_d < -band) & (d > band)) | ((spq_d > band) & (d < -band))
         ms = 1e3 * best[variant] / len(qs)
         rows.append({"engine": f"pinocchio ({variant})", "status": "ran", "version": version,
                      "ms_per_config": ms, "spq_pch_ms": 1e3 * best.get("pch", np.nan) / len(qs),
                      "spq_auto_ms": 1e3 * best.get("auto", np.nan) / len(qs),
-                     "spq_pch_speedup": best[variant] / best.get("pch", np.nan),
+                     "spq_pch_speedup": np.nan if on_auto else best[variant] / best.get("pch", np.nan),
                      "spq_auto_speedup": best[variant] / best.get("auto", np.nan),
-                     "max_abs_diff_vs_spq_m": float(diff.max()) if diff.size else np.nan,
+                     "max_abs_diff_vs_spq_m": float(np.abs(diff).max()) if diff.size else np.nan,
+                     "diff_min_m": float(diff.min()) if diff.size else np.nan,
+                     "diff_max_m": float(diff.max()) if diff.size else np.nan,
+                     "stp_mesh_error_m": max(mesh_errors.values()) if on_auto and mesh_errors else np.nan,
                      "overlap_disagreements": int(disagree.sum()), "pairs": len(peer.geometry.collisionPairs),
                      "configurations": len(qs)})
     return pd.DataFrame(rows)
