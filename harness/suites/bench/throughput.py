@@ -137,7 +137,8 @@ def _mesh_modes(pair_types, shapes: dict, engines: dict, rel_tolerances) -> tupl
 
 def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.DataFrame:
     """Queries per second per pair type, engine and mode on two copies of one object, with the
-    ratio to coal's PCH-PCH rate. External engines only run PCH-PCH (they have no STP-BV).
+    ratio to coal's PCH-PCH rate. External engines run PCH-PCH, and (MESH_ENGINES) the STP pairs on the
+    STP-BV's meshes, as they have no STP-BV.
     config.workers > 1 adds spq's batched modes on that many threads.
 
     coal always runs with signed distance on (its EPA on overlaps); spq runs unsigned (overlaps get
@@ -148,8 +149,8 @@ def throughput(config: BenchConfig, load_object, progress: bool = True) -> pd.Da
 
     The peers have no STP-BV; with config.mesh_rel_tolerances they also run STP-PCH and STP-STP on the
     STP-BV's certified meshes (stp_meshes), in the same blocks: rows "<MESH_MODE> <tolerance> m", with
-    the mesh's vertices and certified error, and their largest difference from spq's signed answers
-    (the exact STP-BV's) on the same poses."""
+    the mesh's vertices and certified error, and the least and largest of their signed distance less
+    spq's (the exact STP-BV's) on the same poses."""
     from tqdm import tqdm
 
     from spq.workers import check_workers
