@@ -17,6 +17,7 @@ from spq.kernels.jit import kernel
 from spq.kernels.gjk import (
     IWORK_SIZE,
     OUT_DISTANCE,
+    OUT_LOWER,
     OUT_NORMAL,
     OUT_POINT_A,
     OUT_POINT_B,
@@ -274,4 +275,9 @@ def posed_query(fA, iA, fB, iB, ints, floats, TA, TB, coherent, scratch, row):
               (floats[F_TOL_ABS], floats[F_TOL_REL], ints[I_MAX_ITER]), d, floats[F_CENTRES:F_CENTRES + 6], warm, iwork,
               work, row, signed)
     row[OUT_UPPER] = row[OUT_DISTANCE]  # every path leaves its upper bound there
+    if row[OUT_LOWER] > row[OUT_DISTANCE]:
+        # a descent's bound and the gap between its witness points are different sums, which
+        # rounding may cross by an ulp or two (a quarter of separated polytope, primitive and
+        # smooth-body queries): the lesser is still a lower bound
+        row[OUT_LOWER] = row[OUT_DISTANCE]
     _to_world(TA, row)
