@@ -133,18 +133,26 @@ class BatchDistances:
     distance (N,), point_a (N, 3), point_b (N, 3), normal (N, 3), status (N,) str,
     status_code (N,) int8 (index into spq.STATUS_NAMES), iterations (N,) int, lower_bound (N,),
     upper_bound (N,).
+
+    point_a, point_b and normal are views into the one (N, OUT_SIZE) array the kernel wrote (rows
+    of OUT_SIZE floats, so not C-contiguous): copying them cost about 24 ns a query, 2% to 5% of a
+    batched query. status is made on first access (another 7 ns a query when made here).
     """
 
     def __init__(self, out: np.ndarray):
         self.distance = out[:, OUT_DISTANCE].copy()
-        self.point_a = out[:, OUT_POINT_A:OUT_POINT_A + 3].copy()
-        self.point_b = out[:, OUT_POINT_B:OUT_POINT_B + 3].copy()
-        self.normal = out[:, OUT_NORMAL:OUT_NORMAL + 3].copy()
+        self.point_a = out[:, OUT_POINT_A:OUT_POINT_A + 3]
+        self.point_b = out[:, OUT_POINT_B:OUT_POINT_B + 3]
+        self.normal = out[:, OUT_NORMAL:OUT_NORMAL + 3]
         self.status_code = out[:, OUT_STATUS].astype(np.int8)
-        self.status = _STATUS_ARRAY[self.status_code]
         self.iterations = out[:, OUT_ITERATIONS].astype(np.int64)
         self.lower_bound = out[:, OUT_LOWER].copy()
         self.upper_bound = out[:, OUT_UPPER].copy()
+
+    @functools.cached_property
+    def status(self) -> np.ndarray:
+        """(N,) str: each query's STATUS_NAMES entry."""
+        return _STATUS_ARRAY[self.status_code]
 
     def __len__(self) -> int:
         return len(self.distance)

@@ -195,6 +195,29 @@ def test_batch_pair_and_single_agree_and_batch_is_cold_by_default():
         assert abs(warm.distance - single.distance) <= 1e-9
 
 
+def test_a_batch_keeps_its_values_after_later_batches():
+    """BatchDistances' points and normals are views into the batch's own result array: later batches
+    (one Pair's, the plain call's, on threads) must not write into them. Each kept point pair is
+    checked against the exact Minkowski reference after every batch has run."""
+    rng = np.random.default_rng(11)
+    a, b = hull(5, n=60), hull(6, n=60)
+    pa = np.stack([random_pose(rng) for _ in range(64)])
+    pb = np.stack([random_pose(rng) for _ in range(64)])
+    pair = spq.Pair(a, b)
+    first = pair.distances(pa, pb, coherent=False)
+    kept = (first.point_a.copy(), first.point_b.copy(), first.normal.copy(), first.status.copy())
+    pair.distances(pb, pa, coherent=False)
+    spq.distances(a, b, pa[::-1], pb, workers=2)
+    np.testing.assert_array_equal(first.point_a, kept[0])
+    np.testing.assert_array_equal(first.point_b, kept[1])
+    np.testing.assert_array_equal(first.normal, kept[2])
+    assert (first.status == kept[3]).all()
+    for i in range(0, 64, 9):
+        ref = reference_distance(a, b, pa[i], pb[i]).distance
+        if first.status[i] == "separated":
+            assert abs(np.linalg.norm(first.point_b[i] - first.point_a[i]) - ref) <= 1e-9
+
+
 def test_warm_start_along_a_smooth_path_takes_fewer_iterations():
     a, b = hull(3, n=300), hull(4, n=300)
     n = 400
