@@ -363,6 +363,24 @@ def test_pruned_pairs_are_farther_than_the_threshold_and_the_rest_unchanged(jvrc
     assert pruned_total > 0 and kept_total > 0, (pruned_total, kept_total)
 
 
+@pytest.mark.engines
+def test_a_result_keeps_its_values_after_later_calls(jvrc1_pch, jvrc1_configurations, jvrc1_coal):
+    """A SceneDistances' points and normals are views into its sweep's rows: a later call (or a
+    batch from distances_many) must not write into them. Each result is checked against coal's
+    distance at its own configuration after every call has run."""
+    results = [jvrc1_pch.distances(q, coherent=False) for q in jvrc1_configurations[:3]]
+    kept = [(r.point_a.copy(), r.point_b.copy(), r.normal.copy(), r.status.copy()) for r in results]
+    jvrc1_pch.distances_many(jvrc1_configurations[3:6])
+    jvrc1_pch.distances(jvrc1_configurations[6], coherent=False)
+    for r, (pa, pb, n, status), coal_d in zip(results, kept, jvrc1_coal):
+        np.testing.assert_array_equal(r.point_a, pa)
+        np.testing.assert_array_equal(r.point_b, pb)
+        np.testing.assert_array_equal(r.normal, n)
+        assert (r.status == status).all()
+        sep = r.status == "separated"
+        np.testing.assert_allclose(np.linalg.norm(r.point_b[sep] - r.point_a[sep], axis=1), coal_d[sep], atol=1e-6)
+
+
 def test_pruning_with_warm_starts_along_a_trajectory_keeps_exact_distances(jvrc1_auto, jvrc1_trajectory):
     """A pair that is pruned for a while and comes back must not reuse a stale warm start wrongly."""
     jvrc1_auto.reset()
