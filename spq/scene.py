@@ -35,21 +35,11 @@ from spq.kernels import scene as kscene
 from spq.kernels.batch import query_scratch
 from spq.kernels.kinds import IDATA_DTYPE, POLYTOPE, STP
 from spq.kernels.stp_support import IDX_H, IDX_HULL
-from spq.kernels.gjk import (
-    OUT_DISTANCE,
-    OUT_ITERATIONS,
-    OUT_LOWER,
-    OUT_NORMAL,
-    OUT_POINT_A,
-    OUT_POINT_B,
-    OUT_SIZE,
-    OUT_STATUS,
-    OUT_UPPER,
-    STATUS_NAMES,
-)
+from spq.kernels.gjk import OUT_SIZE, OUT_STATUS, STATUS_NAMES
 from spq.kernels.batch import I_SIGNED
 from spq.kinematics import PRISMATIC, MeshGeometry, PrimitiveGeometry, RobotModel
-from spq.query import DEFAULT_MAX_ITER, DEFAULT_TOL_ABS, DEFAULT_TOL_REL, _check_tolerances, check_signed
+from spq.query import (DEFAULT_MAX_ITER, DEFAULT_TOL_ABS, DEFAULT_TOL_REL, BatchDistances, _check_tolerances,
+                       check_signed)
 from spq.shapes.polyhedron import Polyhedron
 from spq.shapes.primitives import Box, Capsule, Sphere
 from spq.shapes.stpbv import STPBV
@@ -148,7 +138,7 @@ class Obstacle:
                     shape=self.shape)
 
 
-class SceneDistances:
+class SceneDistances(BatchDistances):
     """Every queried pair's result for one configuration (world frame, metres).
 
     pairs: (npairs, 2) body indices; distance (npairs,) (inf for a pruned pair; with signed=True
@@ -163,15 +153,8 @@ class SceneDistances:
     pruned step's query."""
 
     def __init__(self, pairs: np.ndarray, out: np.ndarray):
+        super().__init__(out)
         self.pairs = pairs
-        self.distance = out[:, OUT_DISTANCE].copy()
-        self.point_a = out[:, OUT_POINT_A:OUT_POINT_A + 3]
-        self.point_b = out[:, OUT_POINT_B:OUT_POINT_B + 3]
-        self.normal = out[:, OUT_NORMAL:OUT_NORMAL + 3]
-        self.status_code = out[:, OUT_STATUS].astype(np.int64)
-        self.iterations = out[:, OUT_ITERATIONS].astype(np.int64)
-        self.lower_bound = out[:, OUT_LOWER].copy()
-        self.upper_bound = out[:, OUT_UPPER].copy()
         self.jacobian: np.ndarray | None = None
 
     @classmethod
