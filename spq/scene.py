@@ -149,8 +149,8 @@ class SceneDistances(BatchDistances):
 
     point_a, point_b and normal are views into the sweep's result rows (OUT_SIZE floats each, so not
     C-contiguous), and status and pruned are made on first access: a controller asks for a scene's
-    distances every step, and copying these took about 20 us of JVRC-1's 561 pairs, a quarter of a
-    pruned step's query."""
+    distances every step, and copying these took about 30 us of JVRC-1's 561 pairs, a third of a
+    pruned step's query (0.082 -> 0.055 ms)."""
 
     def __init__(self, pairs: np.ndarray, out: np.ndarray):
         super().__init__(out)

@@ -212,10 +212,15 @@ def test_a_batch_keeps_its_values_after_later_batches():
     np.testing.assert_array_equal(first.point_b, kept[1])
     np.testing.assert_array_equal(first.normal, kept[2])
     assert (first.status == kept[3]).all()
-    for i in range(0, 64, 9):
+    checked = 0
+    for i in range(64):
         ref = reference_distance(a, b, pa[i], pb[i]).distance
         if first.status[i] == "separated":
-            assert abs(np.linalg.norm(first.point_b[i] - first.point_a[i]) - ref) <= 1e-9
+            assert abs(np.linalg.norm(first.point_b[i] - first.point_a[i]) - ref) <= 1e-9, i
+            checked += 1
+        else:
+            assert ref <= 1e-9, (i, first.status[i], ref)
+    assert checked >= 3, checked  # the oracle must have judged some kept points
 
 
 def test_warm_start_along_a_smooth_path_takes_fewer_iterations():
