@@ -58,6 +58,7 @@ from spq.kernels.gjk import (
 )
 from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
+from spq.kernels.primitive_pairs import closed_form_kinds, primitive_query
 from spq.kernels.closest_points_newton import PRIMAL_INNER_REL_TOL, closest_points_newton, primal_pair
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_against_stp, smooth_pair
 from spq.kernels.patch_newton import patch_newton, patch_newton_first, patch_newton_pair
@@ -886,6 +887,9 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
     depth as a negative distance, with witness points and certified bounds (spq.kernels.signed);
     otherwise distance 0 and NaN points. Returns the status code.
 
+    Spheres and capsules against each other, and a box against a sphere, take a closed form
+    (spq.kernels.primitive_pairs) unless their cores meet.
+
     With an STP-BV on either side: first the patches that faced each other in the last query (against
     a polytope by coherent_ball.coherent_ball_finish, else finish_on_patches); then a loose search on
     the underlying hulls grown by r, whose overlap is the STP-BVs' overlap and whose normal points at
@@ -901,6 +905,10 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
     """
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     tol_abs, tol_rel, max_iter = tol
+    if closed_form_kinds(kA, kB):
+        status = primitive_query(pair, tol, signed, dir_io, out)
+        if status >= 0:
+            return status
     extra = 0
     if kA == STP or kB == STP:
         n = math.sqrt(dir_io[0] ** 2 + dir_io[1] ** 2 + dir_io[2] ** 2)
