@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 from spq.kernels.epa import bounds_closed
+from spq.kernels.frames import rot_to_a, to_a, to_b
 from spq.kernels.gjk import OUT_DISTANCE, OUT_ITERATIONS, OUT_LOWER, OUT_NORMAL, OUT_POINT_A, OUT_POINT_B, \
     OUT_STATUS, OUT_UPPER, OVERLAPPING
 from spq.kernels.jit import kernel
@@ -72,9 +73,7 @@ def primitive_query(pair, tol, signed, dir_io, out):
         if kA == BOX:  # B's point is t
             p0, p1, p2 = t[0], t[1], t[2]
         else:  # A's point (the origin) in B's frame
-            p0 = -(R[0, 0] * t[0] + R[1, 0] * t[1] + R[2, 0] * t[2])
-            p1 = -(R[0, 1] * t[0] + R[1, 1] * t[1] + R[2, 1] * t[2])
-            p2 = -(R[0, 2] * t[0] + R[1, 2] * t[1] + R[2, 2] * t[2])
+            p0, p1, p2 = to_b(R, t, 0.0, 0.0, 0.0)
         q0, q1, q2 = _clamp(p0, h[0]), _clamp(p1, h[1]), _clamp(p2, h[2])
         # in the box's frame: from the box's point to the point
         g0, g1, g2 = p0 - q0, p1 - q1, p2 - q2
@@ -89,13 +88,9 @@ def primitive_query(pair, tol, signed, dir_io, out):
             a0, a1, a2, b0, b1, b2 = q0, q1, q2, p0, p1, p2
         else:  # back to A's frame, where the box's point is on B and the normal points at it
             a0 = a1 = a2 = 0.0
-            b0 = R[0, 0] * q0 + R[0, 1] * q1 + R[0, 2] * q2 + t[0]
-            b1 = R[1, 0] * q0 + R[1, 1] * q1 + R[1, 2] * q2 + t[1]
-            b2 = R[2, 0] * q0 + R[2, 1] * q1 + R[2, 2] * q2 + t[2]
-            m0 = -(R[0, 0] * n0 + R[0, 1] * n1 + R[0, 2] * n2)
-            m1 = -(R[1, 0] * n0 + R[1, 1] * n1 + R[1, 2] * n2)
-            m2 = -(R[2, 0] * n0 + R[2, 1] * n1 + R[2, 2] * n2)
-            n0, n1, n2 = m0, m1, m2
+            b0, b1, b2 = to_a(R, t, q0, q1, q2)
+            m0, m1, m2 = rot_to_a(R, n0, n1, n2)
+            n0, n1, n2 = -m0, -m1, -m2
     else:
         hA = fA[0] if kA == SEGMENT else 0.0
         hB = fB[0] if kB == SEGMENT else 0.0
