@@ -114,7 +114,7 @@ def test_the_closed_forms_meet_the_least_squares_oracle(case, signed):
 def test_coal_agrees_on_random_poses():
     """coal's own primitive distances (an external engine) on 3,000 random poses of each kind pair,
     the separated ones: within 1e-7 m."""
-    coal = pytest.importorskip("coal")
+    import coal  # a dependency of spq's tests: its absence fails the test
     rng = np.random.default_rng(3)
     spq_shapes = {"sphere": spq.Sphere(0.08), "capsule": spq.Capsule(0.05, 0.2), "box": spq.Box(0.1, 0.05, 0.15)}
     coal_shapes = {"sphere": coal.Sphere(0.08), "capsule": coal.Capsule(0.05, 0.4), "box": coal.Box(0.2, 0.1, 0.3)}
@@ -194,13 +194,16 @@ def test_the_closed_form_answers_wherever_the_cores_are_apart():
         pose_a = _pose(Rotation.random(random_state=rng).as_matrix(), rng.uniform(-1, 1, 3))
         rot_b = pose_a[:3, :3] if rng.random() < 0.2 else Rotation.random(random_state=rng).as_matrix()
         pose_b = _pose(rot_b, pose_a[:3, 3] + rng.uniform(-0.4, 0.4, 3))
-        if core_distance(A, pose_a, B, pose_b) < 1e-6:
+        core = core_distance(A, pose_a, B, pose_b)
+        if core < 1e-6:
             continue
         ka, kb = A.kernel_data(), B.kernel_data()
         signed = bool(rng.integers(2))
         out = np.zeros(OUT_SIZE)
         status = closed(ka.kind, ka.margin, ka.fdata, kb.kind, kb.margin, kb.fdata, pose_a, pose_b, signed, out)
         assert status >= 0, (A, B, pose_a, pose_b)
+        sd = core - _margins(A, B)
+        assert abs(out[OUT_DISTANCE] - (sd if signed else max(sd, 0.0))) <= 1e-9, (A, B, out[OUT_DISTANCE], sd)
         # the public call's answer is the kernel's (the world's witness points are A's frame's moved)
         assert spq.distance(A, B, pose_a, pose_b, signed=signed).distance == out[OUT_DISTANCE]
         answered += 1
