@@ -14,7 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spq.kernels.kinematics import CONTINUOUS, FIXED, PRISMATIC, REVOLUTE, forward_kinematics, forward_kinematics_many
+from spq.kernels.kinematics import (CONTINUOUS, FIXED, PRISMATIC, REVOLUTE, forward_kinematics, forward_kinematics_many,
+                                    within_limits)
 from spq.validation import as_pose, as_poses
 
 JOINT_TYPE_NAMES = {FIXED: "fixed", REVOLUTE: "revolute", CONTINUOUS: "continuous", PRISMATIC: "prismatic"}
@@ -174,6 +175,9 @@ class RobotModel:
         return arr
 
     def _check_values(self, qs: np.ndarray, what: str) -> None:
+        if within_limits(qs, self.lower, self.upper, LIMIT_SLACK):
+            return
+        # name the first bad value
         bad = ~np.isfinite(qs)
         if bad.any():
             n, k = np.argwhere(bad)[0]

@@ -505,6 +505,7 @@ class Scene:
         tol, rel_tol, max_iter = self._tol
         self._pair_ints, self._pair_floats = kscene.pack_pair_state(
             self._slot_kind, self._slot_margin, self._slot_centre, self._pair_slots, tol, rel_tol, max_iter)
+        self._signed = False  # what the pairs' I_SIGNED column holds (pack_pair_state's zeros)
 
     @property
     def body_names(self) -> list[str]:
@@ -532,7 +533,10 @@ class Scene:
         ∂d/∂q too, in the same compiled loop."""
         shape = (len(qs), len(self.pairs), OUT_SIZE)
         workers = check_workers(workers)
-        self._pair_ints[:, I_SIGNED] = check_signed(signed)
+        signed = check_signed(signed)
+        if signed != self._signed:  # a column write costs about 1 us: a control loop asks the same every step
+            self._pair_ints[:, I_SIGNED] = signed
+            self._signed = signed
         if out is None:
             out = np.empty(shape)
         elif (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float64

@@ -31,6 +31,8 @@ _pools_lock = threading.Lock()
 
 def check_workers(workers) -> int:
     """``workers`` as an int in 1..MAX_WORKERS, or ValueError naming the admissible range."""
+    if type(workers) is int and 1 <= workers <= MAX_WORKERS:  # (not a bool, whose type is bool)
+        return workers
     if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, (int, np.integer)):
         raise ValueError(f"workers must be an integer from 1 to {MAX_WORKERS} (1: one thread); got {workers!r}")
     if not 1 <= int(workers) <= MAX_WORKERS:

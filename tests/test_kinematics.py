@@ -12,12 +12,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from datasets.paths import pybullet_data_dir
 from datasets.robots import ROBOTS, link_shape_file, robot_files, robot_urdf
 from harness.references.pybullet_kinematics import PybulletRobot, quaternion_matrix
 from spq.io.urdf import read_urdf
-from spq.kinematics import CONTINUOUS, FIXED, PRISMATIC, REVOLUTE, MeshGeometry, PrimitiveGeometry, RobotModel
+from spq.kernels.kinematics import within_limits
+from spq.kinematics import (CONTINUOUS, FIXED, LIMIT_SLACK, PRISMATIC, REVOLUTE, MeshGeometry, PrimitiveGeometry,
+                           RobotModel)
 
 FK_TOL = 1e-9  # m for positions, dimensionless for rotation-matrix entries
 N_CONFIGURATIONS = 20
@@ -326,3 +330,19 @@ def test_jvrc1_robot_files_give_the_hull_of_each_link_mesh(shared_datasets):
     model = read_urdf(robot_urdf("jvrc1"))
     hulls = {link_shape_file("jvrc1", g.filename) for geometry in model.link_geometry for g in geometry}
     assert len(hulls) == 35 and all(p.name.endswith("-ch.txt") for p in hulls)
+
+
+# ---------------------------------------------------------------- the compiled limits check
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from([0.0, -0.1, 0.2, 0.2 + 5e-13, 0.2 + 2e-12, -0.1 - 2e-12, -2.0, 3.0, math.nan,
+                                 math.inf, -math.inf, -1e300]), min_size=2, max_size=12))
+def test_within_limits_agrees_with_numpy_on_every_value(values):
+    """spq.kernels.kinematics.within_limits, which RobotModel's checks run first, against numpy's
+    isfinite and comparisons with the same slack (values at, just inside and just outside the
+    slack, NaN and infinities, on a joint with an infinite limit too)."""
+    qs = np.array(values[: len(values) // 2 * 2]).reshape(-1, 2)
+    lower, upper = np.array([-0.1, -np.inf]), np.array([0.2, np.inf])
+    expected = bool(np.isfinite(qs).all() and not ((qs < lower - LIMIT_SLACK) | (qs > upper + LIMIT_SLACK)).any())
+    assert within_limits(qs, lower, upper, LIMIT_SLACK) is expected

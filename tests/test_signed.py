@@ -19,6 +19,7 @@ import spq
 from datasets import load_object
 from harness.references.minkowski import MinkowskiReference, reference_distance
 from harness.workloads.poses import bucket_suite, pose_matrix
+from spq.kernels.gjk import OUT_DISTANCE, OUT_LOWER
 from spq.scene import Scene
 
 OVERLAP_BUCKETS = ["overlap-1e-4", "overlap-1e-3", "overlap-1e-2", "overlap-1e-1"]
@@ -323,6 +324,29 @@ def test_scene_signed_distances_match_the_reference_per_pair():
                 assert signed.distance[k] == plain.distance[k]
             overlaps += ref.signed_distance < -1e-9
     assert overlaps >= 5
+
+
+def test_a_scene_switching_signed_on_and_off_answers_as_fresh_scenes():
+    """Scene._run writes the pairs' signed flag only when a call asks otherwise than the last, and
+    reset() rebuilds the pairs' state unsigned: in any order of signed calls, unsigned calls and
+    resets, each answer is a fresh scene's, bit for bit (overlaps negative only when signed)."""
+    from datasets.robots import ROBOTS
+
+    files = ROBOTS["panda"]
+    make = lambda: Scene.from_urdf(files.urdf, mesh_root=files.mesh_root, policy="pch")  # noqa: E731
+    scene = make()
+    rng = np.random.default_rng(3)
+    qs = rng.uniform(scene.model.lower, scene.model.upper, (60, len(scene.model.lower)))
+    fresh = {signed: make().distances_many(qs, signed=signed)[:, :, [OUT_DISTANCE, OUT_LOWER]] for signed in (False, True)}
+    assert (fresh[True][:, :, 0] < -1e-6).any() and (fresh[False][:, :, 0] >= 0.0).all()
+    for step in (True, "reset", True, False, "reset", False, True, True, "reset", True, False):
+        if step == "reset":
+            scene.reset()
+            continue
+        got = scene.distances_many(qs, signed=step)[:, :, [OUT_DISTANCE, OUT_LOWER]]
+        assert np.array_equal(got, fresh[step]), f"signed={step}"
+        one = scene.distances(qs[7], coherent=False, signed=step)
+        assert np.array_equal(one.distance, fresh[step][7, :, 0]) and np.array_equal(one.lower_bound, fresh[step][7, :, 1])
 
 
 def test_patch_rounds_skipped_where_the_hulls_overlap_could_not_have_closed():

@@ -116,3 +116,17 @@ def forward_kinematics_many(
         forward_kinematics(
             parent, joint_type, joint_origin, joint_axis, q_index, q_multiplier, q_offset, qs[k], bases[k], out[k]
         )
+
+
+@kernel
+def within_limits(qs, lower, upper, slack):
+    """Whether every value of qs (N, ndof) is finite and within [lower - slack, upper + slack]
+    (lower, upper: (ndof,)). One pass over the values: the numpy checks it stands in front of
+    (isfinite, two comparisons, their any) cost about 9 us a call, a fifth of a controller's
+    per-step scene call on a small robot."""
+    for i in range(qs.shape[0]):
+        for k in range(qs.shape[1]):
+            v = qs[i, k]
+            if not (math.isfinite(v) and v >= lower[k] - slack and v <= upper[k] + slack):
+                return False
+    return True
