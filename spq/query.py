@@ -205,10 +205,13 @@ def _pack(A: Shape, B: Shape, tol, rel_tol, max_iter, signed) -> tuple[np.ndarra
     _check_shape(B, "B")
     tol, rel_tol, max_iter = _check_tolerances(tol, rel_tol, max_iter)
     ka, kb_ = A.kernel_data(), B.kernel_data()
+    # one element at a time: a fancy-indexed write of the four took about 4 us, a third of a Pair's making
     ints = np.zeros(kb.INTS_SIZE, dtype=np.int64)
-    ints[[kb.I_KIND_A, kb.I_KIND_B, kb.I_MAX_ITER, kb.I_SIGNED]] = ka.kind, kb_.kind, max_iter, check_signed(signed)
+    ints[kb.I_KIND_A], ints[kb.I_KIND_B], ints[kb.I_MAX_ITER] = ka.kind, kb_.kind, max_iter
+    ints[kb.I_SIGNED] = check_signed(signed)
     floats = np.zeros(kb.FLOATS_SIZE)
-    floats[[kb.F_MARGIN_A, kb.F_MARGIN_B, kb.F_TOL_ABS, kb.F_TOL_REL]] = ka.margin, kb_.margin, tol, rel_tol
+    floats[kb.F_MARGIN_A], floats[kb.F_MARGIN_B], floats[kb.F_TOL_ABS], floats[kb.F_TOL_REL] = (
+        ka.margin, kb_.margin, tol, rel_tol)
     return ints, floats
 
 
@@ -250,16 +253,37 @@ def _as_matrix(pose) -> np.ndarray:
     return as_poses(arr)[0]  # a fresh copy
 
 
+try:  # numba's own key of an argument's type, in C: what its dispatcher looks a call's types up by
+    from numba._dispatcher import compute_fingerprint as _fingerprint
+except ImportError:  # a numba without it (or NUMBA_DISABLE_JIT's stand-ins): no cache, numba's typeof each time
+    _fingerprint = None
+
+_MACHINE_CODES: dict = {}  # (dispatcher, the arguments' fingerprints) -> its machine code, for every Pair
+
+
 def _machine_code(dispatcher, args):
     """The machine code numba compiled for these arguments' types, called without numba's per-call
     dispatch on them (the type of every argument, then a lookup: about 0.6 us of a 3 us query). Only
     for arguments whose types cannot change between calls (a Pair's own arrays) or that the kernel
     checks (poses: any float64 2-D array, whose shape and strides kb.query_one checks): the machine
-    code does not check them. The dispatcher itself where numba has none (NUMBA_DISABLE_JIT)."""
+    code does not check them. The dispatcher itself where numba has none (NUMBA_DISABLE_JIT).
+
+    Kept per the arguments' type fingerprints, which every Pair shares: numba's typeof in Python took
+    about 180 us of a new pair's first call, so a plain distance() over more shape pairs than its
+    cache holds (PLAIN_PAIRS) cost 190 us a call."""
     try:
-        return dispatcher.overloads[tuple(dispatcher.typeof_pyval(a) for a in args)].entry_point
-    except (AttributeError, KeyError):
-        return dispatcher
+        key = (dispatcher, *map(_fingerprint, args))
+    except (TypeError, ValueError):  # no fingerprint (_fingerprint None, or an argument numba keys otherwise)
+        key = None
+    code = _MACHINE_CODES.get(key) if key is not None else None
+    if code is None:
+        try:
+            code = dispatcher.overloads[tuple(dispatcher.typeof_pyval(a) for a in args)].entry_point
+        except (AttributeError, KeyError):
+            code = dispatcher
+        if key is not None:
+            _MACHINE_CODES[key] = code
+    return code
 
 
 def _as_pose_batch(poses, name: str) -> np.ndarray:

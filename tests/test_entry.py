@@ -82,6 +82,24 @@ def test_c_and_python_entries_agree_bit_for_bit_on_every_kind():
                         assert c.lower_bound - 1e-9 <= value <= c.upper_bound + 1e-9, where
 
 
+def test_plain_calls_over_more_shape_pairs_than_the_cache_holds_answer_as_batched_queries():
+    """spq.distance over twice PLAIN_PAIRS shape pairs in turn (every kind against every kind, two
+    copies of each shape), so that every call packs a new Pair and takes its machine code from the
+    cache shared by all pairs (query._machine_code): through C and through Python, each result array
+    is the batched query's (kb.query_batch through numba's own dispatch), bit for bit."""
+    rng = np.random.default_rng(5)
+    kinds = list(shapes().values()) + list(shapes().values())
+    pairs = [(A, B) for A in kinds for B in kinds]
+    assert len(pairs) >= 2 * sq.PLAIN_PAIRS
+    for k in range(3 * len(pairs)):
+        A, B = pairs[k % len(pairs)]
+        pa, pb, signed = random_pose(rng, 0.0), random_pose(rng, 0.2), bool(k % 2)
+        batched = spq.distances(A, B, pa, pb, signed=signed)._rows[0]
+        for call in (spq.distance, PYTHON_PLAIN):
+            result = call(A, B, pa, pb, signed=signed)
+            assert np.array_equal(result._out, batched, equal_nan=True), (k, call)
+
+
 def test_c_entries_take_the_python_path_and_its_errors_for_anything_else():
     """Keywords, positional options, poses of other types and layouts, bad values and bad calls:
     what the C entries do not take themselves they hand to Python, so answers and error messages
