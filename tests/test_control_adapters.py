@@ -13,6 +13,7 @@ import pytest
 
 from spq.control import DamperLimit, DamperRows, VelocityDamper
 from spq.control.joint_map import mujoco_joint_map, pinocchio_joint_map
+from spq.kernels.gjk import FAILED
 from spq.scene import Obstacle, Scene
 from spq.shapes.primitives import Box
 
@@ -141,11 +142,13 @@ def test_a_failed_query_gives_no_row_and_is_counted(claw):
 
     result = claw.distances(FOLDED, coherent=False, signed=True, jacobian=True)
     close = np.flatnonzero(result.distance < DI)
-    result.status[close[0]] = "failed"  # as a query that did not converge reports itself
-    result.jacobian[close[0]] = np.nan
+    assert len(close) >= 3
+    result.status_code[close[:2]] = FAILED  # as a query that did not converge reports itself
+    assert (result.status[close[:2]] == "failed").all()
+    result.jacobian[close[0]] = np.nan  # close[1]'s row stays finite: its status alone must leave it out
     rows = damper_rows(result, DI, DS, XI)
-    assert rows.failed.tolist() == [close[0]] and rows.n_failed == 1
-    assert sorted(rows.pairs.tolist()) == close[1:].tolist()
+    assert rows.failed.tolist() == close[:2].tolist() and rows.n_failed == 2
+    assert sorted(rows.pairs.tolist()) == close[2:].tolist()
     with pytest.raises(ValueError, match=r"jacobian=True"):
         damper_rows(claw.distances(FOLDED), DI, DS, XI)
 
