@@ -24,8 +24,8 @@ except ImportError as exc:  # pragma: no cover - exercised by a test that hides 
     raise ImportError(f"spq.control.SceneBarrier is a pink barrier and needs pink: pip install pin-pink ({exc})") \
         from None
 
-from spq.control.damper import FAILED_CODE
 from spq.control.joint_map import pinocchio_joint_map
+from spq.kernels.gjk import FAILED
 
 INACTIVE_VALUE = 1.0  # m: barrier value of an inactive row, whose constraint 0 . dq <= gain * 1 m holds for any motion
 JACOBIAN_NORM_FLOOR = 1e-12  # (m/rad)^2: below this |J|^2, pink's safe-displacement weight gain/|J|^2 is skipped
@@ -117,7 +117,7 @@ class SceneBarrier(Barrier):
         prune = self.detection_distance
         result = self.scene.distances(q, coherent=True, prune=prune, signed=self.signed, jacobian=True)
         d, jac = result.distance, result.jacobian
-        failed = (result.status_code == FAILED_CODE) | ~np.isfinite(jac).all(axis=1)  # a pruned pair's row is 0
+        failed = (result.status_code == FAILED) | ~np.isfinite(jac).all(axis=1)  # a pruned pair's row is 0
         self.failed = np.flatnonzero(failed).astype(np.int64)
         valid = np.flatnonzero(~failed & ~result.pruned)
         chosen = valid[np.argsort(d[valid], kind="stable")[:self.dim]]
