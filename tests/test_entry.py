@@ -86,18 +86,23 @@ def test_plain_calls_over_more_shape_pairs_than_the_cache_holds_answer_as_batche
     """spq.distance over twice PLAIN_PAIRS shape pairs in turn (every kind against every kind, two
     copies of each shape), so that every call packs a new Pair and takes its machine code from the
     cache shared by all pairs (query._machine_code): through C and through Python, each result array
-    is the batched query's (kb.query_batch through numba's own dispatch), bit for bit."""
+    is the batched query's (kb.query_batch through numba's own dispatch), bit for bit; between the
+    polytopes, the bounds hold the exact reference's distance."""
     rng = np.random.default_rng(5)
-    kinds = list(shapes().values()) + list(shapes().values())
-    pairs = [(A, B) for A in kinds for B in kinds]
+    kinds = list(shapes().items()) + list(shapes().items())
+    pairs = [(a, b) for a in kinds for b in kinds]
     assert len(pairs) >= 2 * sq.PLAIN_PAIRS
     for k in range(3 * len(pairs)):
-        A, B = pairs[k % len(pairs)]
+        (a_name, A), (b_name, B) = pairs[k % len(pairs)]
         pa, pb, signed = random_pose(rng, 0.0), random_pose(rng, 0.2), bool(k % 2)
         batched = spq.distances(A, B, pa, pb, signed=signed)._rows[0]
         for call in (spq.distance, PYTHON_PLAIN):
             result = call(A, B, pa, pb, signed=signed)
             assert np.array_equal(result._out, batched, equal_nan=True), (k, call)
+        if a_name == b_name == "pch":
+            exact = reference_distance(A, B, pa, pb).signed_distance
+            value = exact if signed else max(exact, 0.0)
+            assert result.lower_bound - 1e-9 <= value <= result.upper_bound + 1e-9, k
 
 
 def test_c_entries_take_the_python_path_and_its_errors_for_anything_else():
