@@ -10,6 +10,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from spq.control import DamperLimit, DamperRows, VelocityDamper
 from spq.control.joint_map import mujoco_joint_map, pinocchio_joint_map
@@ -151,6 +153,37 @@ def test_a_failed_query_gives_no_row_and_is_counted(claw):
     assert sorted(rows.pairs.tolist()) == close[2:].tolist()
     with pytest.raises(ValueError, match=r"jacobian=True"):
         damper_rows(claw.distances(FOLDED), DI, DS, XI)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 40), st.integers(1, 8), st.integers(0, 2**32 - 1))
+def test_damper_rows_agree_with_a_plain_python_filter_and_sort(n, nv, seed):
+    """The compiled rows against the definition, in plain Python: pairs with d < di whose status is not
+    FAILED and whose row is finite, by increasing distance (ties in pair order); failed: the FAILED
+    pairs and the close ones with a non-finite row, in pair order. Distances drawn with ties, inf
+    (pruned), NaN and overlaps; rows with NaN and inf entries."""
+    from types import SimpleNamespace
+
+    from spq.control.damper import damper_rows
+
+    rng = np.random.default_rng(seed)
+    distance = rng.choice([-0.004, 0.0, 0.01, 0.02, 0.02, 0.049, 0.05, 0.3, np.inf, np.nan], size=n)
+    distance = np.where(rng.random(n) < 0.5, distance, rng.uniform(-0.01, 0.1, n))
+    status = rng.choice(np.array([0, 1, 2, FAILED, -1], dtype=np.int8), size=n)
+    jac = rng.normal(size=(n, nv))
+    bad = rng.random(n) < 0.2
+    jac[bad, rng.integers(0, nv, n)[bad]] = rng.choice([np.nan, np.inf, -np.inf], size=int(bad.sum()))
+    rows = damper_rows(SimpleNamespace(distance=distance, status_code=status, jacobian=jac), DI, DS, XI)
+    finite = [all(np.isfinite(jac[p])) for p in range(n)]
+    keep = [p for p in range(n) if status[p] != FAILED and distance[p] < DI and finite[p]]
+    keep.sort(key=lambda p: (distance[p], p))
+    failed = [p for p in range(n) if status[p] == FAILED or (distance[p] < DI and not finite[p])]
+    assert rows.pairs.tolist() == keep and rows.failed.tolist() == failed
+    assert rows.pairs.dtype == rows.failed.dtype == np.int64
+    assert rows.distance.tolist() == [distance[p] for p in keep]
+    assert rows.h.tolist() == [XI * (distance[p] - DS) / (DI - DS) for p in keep]
+    assert rows.jacobian.shape == rows.G.shape == (len(keep), nv)
+    assert np.array_equal(rows.jacobian, jac[keep]) and np.array_equal(rows.G, -jac[keep])
 
 
 def test_an_unsigned_overlap_gives_no_row_and_is_counted(claw):

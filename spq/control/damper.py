@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spq.kernels.gjk import FAILED  # the status code of a query that did not converge: no distance, no row
+from spq.kernels import damper as kdamper
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,21 +95,10 @@ def damper_rows(result, di: float, ds: float, xi: float) -> DamperRows:
 
 
 def _damper_rows(result, di: float, ds: float, xi: float) -> DamperRows:
-    d, jac = result.distance, result.jacobian
-    failed_query = result.status_code == FAILED  # the codes, not the strings: 12 us a step on JVRC-1's 561 pairs
-    close = np.flatnonzero(d < di)  # a pruned pair's distance is inf, a NaN compares False
-    rows = jac[close]
-    ok = np.isfinite(rows).all(axis=1) & ~failed_query[close]
-    failed = np.flatnonzero(failed_query)
-    if not ok.all():
-        failed = np.union1d(failed, close[~ok])
-        close, rows = close[ok], rows[ok]
-    order = np.argsort(d[close], kind="stable")
-    close, rows = close[order], np.ascontiguousarray(rows[order])
-    dist = d[close]
-    h = xi * (dist - ds) / (di - ds)
-    return DamperRows(G=-rows, h=h, pairs=close.astype(np.int64), distance=dist, jacobian=rows,
-                      failed=failed.astype(np.int64))
+    # one compiled pass (spq.kernels.damper); the status codes, not the strings
+    G, h, pairs, dist, rows, failed = kdamper.damper_rows(result.distance, result.status_code, result.jacobian,
+                                                         di, ds, xi)
+    return DamperRows(G=G, h=h, pairs=pairs, distance=dist, jacobian=rows, failed=failed)
 
 
 class VelocityDamper:
