@@ -201,3 +201,25 @@ def test_the_suite_runs_end_to_end_and_writes_its_files(tmp_path):
     assert not runs.note.astype(str).str.startswith("did not run").any(), runs.note.tolist()
     text = (tmp_path / "control.md").read_text()
     assert "What continuity buys a controller" in text and '"xi": 0.5' in text
+
+
+def test_the_time_chart_shows_every_bar_above_its_axis_floor(tmp_path, monkeypatch):
+    """The log axis's floor lies below the shortest distance bar (autoscale had put it above ur5's spq
+    bars, which then did not show): each bar's top, read back from the drawn patches, is above it."""
+    import pandas as pd
+
+    import harness.report.charts as charts
+    from harness.suites.control import _time_chart
+
+    table = pd.DataFrame({"robot": ["big", "big", "arm", "arm"], "method": ["spq-auto", "mink"] * 2,
+                          "ms_distance": [0.09, 0.23, 0.054, 0.096], "ms_qp": [0.41, 0.31, 0.28, 0.19]})
+    drawn = {}
+    real_save = charts.save_figure
+    monkeypatch.setattr(charts, "save_figure", lambda fig, path, title="": (drawn.setdefault("fig", fig),
+                                                                            real_save(fig, path, title)))
+    _time_chart(table, tmp_path / "t.png")
+    ax = drawn["fig"].axes[0]
+    floor = ax.get_ylim()[0]
+    tops = [bar.get_y() + bar.get_height() for bar in ax.patches]
+    assert len(tops) == 2 * len(table) and min(tops) > floor, (floor, min(tops))
+    assert (tmp_path / "t.png").stat().st_size > 0
