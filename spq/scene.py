@@ -148,9 +148,9 @@ class SceneDistances(BatchDistances):
     asked for, else None.
 
     point_a, point_b and normal are views into the sweep's result rows (OUT_SIZE floats each, so not
-    C-contiguous), and status and pruned are made on first access: a controller asks for a scene's
-    distances every step, and copying these took about 30 us of JVRC-1's 561 pairs, a third of a
-    pruned step's query (0.082 -> 0.055 ms)."""
+    C-contiguous), and every field is made on first access (see BatchDistances): a controller asks
+    for a scene's distances every step, and copying these took about 30 us of JVRC-1's 561 pairs, a
+    third of a pruned step's query (0.082 -> 0.055 ms)."""
 
     def __init__(self, pairs: np.ndarray, out: np.ndarray):
         super().__init__(out)
@@ -671,8 +671,7 @@ class Scene:
         sphere or capsule); between two polyhedra it jumps where the closest features switch.
 
         Raises ValueError for a q of the wrong length, with NaN/inf, or outside the joint limits."""
-        q = self.model.check_configuration(q)
-        qs = np.ascontiguousarray(q[None])
+        qs = self.model.check_configuration(q).reshape(1, -1)  # a fresh contiguous copy
         jac = np.empty((1, len(self.pairs), self.nv)) if jacobian else None
         out = self._run(qs, coherent, self._check_prune(prune), signed=signed, jac=jac)
         result = SceneDistances.from_out(self.pairs, out[0])

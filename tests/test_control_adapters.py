@@ -141,11 +141,12 @@ def test_damper_rejects_bad_parameters(claw):
 
 def test_a_failed_query_gives_no_row_and_is_counted(claw):
     from spq.control.damper import damper_rows
+    from spq.kernels.gjk import OUT_STATUS
 
     result = claw.distances(FOLDED, coherent=False, signed=True, jacobian=True)
     close = np.flatnonzero(result.distance < DI)
     assert len(close) >= 3
-    result.status_code[close[:2]] = FAILED  # as a query that did not converge reports itself
+    result._rows[close[:2], OUT_STATUS] = FAILED  # as the sweep writes a query that did not converge
     assert (result.status[close[:2]] == "failed").all()
     result.jacobian[close[0]] = np.nan  # close[1]'s row stays finite: its status alone must leave it out
     rows = damper_rows(result, DI, DS, XI)
@@ -162,9 +163,9 @@ def test_damper_rows_agree_with_a_plain_python_filter_and_sort(n, nv, seed):
     FAILED and whose row is finite, by increasing distance (ties in pair order); failed: the FAILED
     pairs and the close ones with a non-finite row, in pair order. Distances drawn with ties, inf
     (pruned), NaN and overlaps; rows with NaN and inf entries."""
-    from types import SimpleNamespace
-
     from spq.control.damper import damper_rows
+    from spq.kernels.gjk import OUT_DISTANCE, OUT_SIZE, OUT_STATUS
+    from spq.scene import SceneDistances
 
     rng = np.random.default_rng(seed)
     distance = rng.choice([-0.004, 0.0, 0.01, 0.02, 0.02, 0.049, 0.05, 0.3, np.inf, np.nan], size=n)
@@ -173,7 +174,11 @@ def test_damper_rows_agree_with_a_plain_python_filter_and_sort(n, nv, seed):
     jac = rng.normal(size=(n, nv))
     bad = rng.random(n) < 0.2
     jac[bad, rng.integers(0, nv, n)[bad]] = rng.choice([np.nan, np.inf, -np.inf], size=int(bad.sum()))
-    rows = damper_rows(SimpleNamespace(distance=distance, status_code=status, jacobian=jac), DI, DS, XI)
+    out = rng.normal(size=(n, OUT_SIZE))  # the sweep's rows: only the distance and status columns count
+    out[:, OUT_DISTANCE], out[:, OUT_STATUS] = distance, status
+    result = SceneDistances(np.zeros((n, 2), np.int64), out)
+    result.jacobian = jac
+    rows = damper_rows(result, DI, DS, XI)
     finite = [all(np.isfinite(jac[p])) for p in range(n)]
     keep = [p for p in range(n) if status[p] != FAILED and distance[p] < DI and finite[p]]
     keep.sort(key=lambda p: (distance[p], p))

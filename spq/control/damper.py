@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from spq.kernels import damper as kdamper
+from spq.scene import SceneDistances
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,6 +62,14 @@ class DamperRows:
     def __len__(self) -> int:
         return len(self.h)
 
+    @classmethod
+    def _of(cls, G, h, pairs, distance, jacobian, failed) -> "DamperRows":
+        # the fields set without the frozen dataclass's __init__ (six object.__setattr__ calls): the
+        # same object for a third of the time, which a small arm's damper call pays every control step
+        rows = object.__new__(cls)
+        rows.__dict__.update(G=G, h=h, pairs=pairs, distance=distance, jacobian=jacobian, failed=failed)
+        return rows
+
 
 def _finite(value, name: str) -> float:
     try:
@@ -89,16 +98,16 @@ def damper_rows(result, di: float, ds: float, xi: float) -> DamperRows:
     or whose Jacobian row is not finite (an overlap queried without ``signed``), gives none and is
     listed in ``failed``."""
     di, ds, xi = check_damper_parameters(di, ds, xi)
+    if not isinstance(result, SceneDistances):
+        raise ValueError(f"damper_rows takes a scene's result (spq.Scene.distances); got {type(result).__name__}")
     if result.jacobian is None:
         raise ValueError("the scene result has no Jacobian: query it with scene.distances(q, jacobian=True)")
     return _damper_rows(result, di, ds, xi)
 
 
 def _damper_rows(result, di: float, ds: float, xi: float) -> DamperRows:
-    # one compiled pass (spq.kernels.damper); the status codes, not the strings
-    G, h, pairs, dist, rows, failed = kdamper.damper_rows(result.distance, result.status_code, result.jacobian,
-                                                         di, ds, xi)
-    return DamperRows(G=G, h=h, pairs=pairs, distance=dist, jacobian=rows, failed=failed)
+    # one compiled pass (spq.kernels.damper) over the sweep's own result rows
+    return DamperRows._of(*kdamper.damper_rows(result._rows, result.jacobian, di, ds, xi))
 
 
 class VelocityDamper:

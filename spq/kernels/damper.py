@@ -11,15 +11,18 @@ import math
 
 import numpy as np
 
-from spq.kernels.gjk import FAILED
+from spq.kernels.gjk import FAILED, OUT_DISTANCE, OUT_STATUS
 from spq.kernels.jit import kernel
 
 
 @kernel(allocates=True)
-def damper_rows(distance, status, jac, di, ds, xi):
+def damper_rows(out, jac, di, ds, xi):
     """(G, h, pairs, distances, jacobian, failed) of the pairs closer than di.
 
-    distance (n,) m, status (n,) the pairs' status codes, jac (n, nv) their rows ∂d/∂q. A pair gives a
+    out (n, OUT_SIZE): the pairs' result rows as the scene's sweep wrote them (distance in m, status
+    code as a float, spq.kernels.gjk's OUT_*); read here rather than through the result's ``distance``
+    and ``status_code`` fields, whose conversion took a fifth of a small arm's damper call inside a
+    control loop. jac (n, nv): their rows ∂d/∂q. A pair gives a
     row when d < di (inf for a pruned pair and NaN never are), its status is not FAILED and its row is
     finite; the rows come by increasing distance (ties in pair order). failed: the pairs whose status
     is FAILED or whose close row is not finite, in pair order. G = -jacobian, h = xi (d - ds) / (di - ds)."""
@@ -29,10 +32,10 @@ def damper_rows(distance, status, jac, di, ds, xi):
     k = 0
     nf = 0
     for p in range(n):
-        if status[p] == FAILED:
+        if out[p, OUT_STATUS] == FAILED:
             failed[nf] = p
             nf += 1
-        elif distance[p] < di:
+        elif out[p, OUT_DISTANCE] < di:
             finite = True
             for c in range(nv):
                 if not math.isfinite(jac[p, c]):
@@ -46,7 +49,7 @@ def damper_rows(distance, status, jac, di, ds, xi):
                 nf += 1
     dist = np.empty(k)
     for i in range(k):
-        dist[i] = distance[close[i]]
+        dist[i] = out[close[i], OUT_DISTANCE]
     order = np.argsort(dist, kind="mergesort")  # stable: equal distances keep the pairs' order
     pairs = np.empty(k, np.int64)
     d = np.empty(k)
