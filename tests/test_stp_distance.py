@@ -123,6 +123,31 @@ def test_two_tori_facing_agree_with_the_plain_descent():
     assert checked >= 10, f"only {checked} poses with two tori facing"
 
 
+def test_two_stp_bvs_where_one_side_is_a_small_sphere_agree_with_the_plain_descent(link4):
+    # Between two STP-BVs the commonest answers pair one side's small sphere with the other's torus or
+    # big sphere; where the hulls' search ends on a single vertex of the sphere's side, the query
+    # settles by marching the other side to the sphere's centre (settle_on_feature). Each answer must
+    # lie within the plain descent's bracket, with the sphere's witness r from its hull vertex.
+    r = 0.005
+    stp = STPBV.from_points(link4.vertices, r, 2.0)
+    hull = stp.hull.vertices
+    pa, pb = random_poses(400, seed=7, translation_range=0.3)
+    batch = spq.distances(stp, stp, pa, pb)
+    one_sphere = 0
+    for i in np.flatnonzero(batch.status == "separated"):
+        st, upper, lower = plain_descent(stp, stp, pa[i], pb[i])
+        assert st == gjk.SEPARATED
+        assert lower - 1e-9 <= batch.distance[i] <= upper + 1e-9
+        assert batch.lower_bound[i] <= batch.distance[i]
+        assert abs(np.linalg.norm(batch.point_b[i] - batch.point_a[i]) - batch.distance[i]) <= 1e-12
+        on_sphere = []
+        for pose, point in ((pa[i], batch.point_a[i]), (pb[i], batch.point_b[i])):
+            local = pose[:3, :3].T @ (point - pose[:3, 3])
+            on_sphere.append(abs(np.linalg.norm(hull - local, axis=1).min() - r) <= 1e-9)
+        one_sphere += on_sphere[0] != on_sphere[1]
+    assert one_sphere >= 100, one_sphere
+
+
 def test_two_stp_bvs_whose_patches_trade_places_settle_on_the_patches(link4):
     # At these poses of the bench's set (kuka_link_4, random_poses seed 0) both sides' patches, stepping
     # at once, cycled between a small sphere and its torus, or a big sphere and its torus, until the

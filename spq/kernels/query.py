@@ -823,34 +823,92 @@ def _segment_of(P, lam, k):
 
 
 @kernel(inline="hot")
-def settle_on_feature(pair, k, tol_abs, tol_rel, warm, work, scratch, fscratch,
-                      out):
-    """Certify the distance of an STP-BV to a non-STP body whose side of the loose search's simplex
-    (k points in work, ids in scratch) is a vertex or an edge: the distance is then that feature's
-    to the STP-BV, which march_to_feature finds without any descent, if the feature is still the
-    other body's nearest along the normal found (the bodies' supports certify it). Returns whether
-    it did (result in out); otherwise the patch finish runs."""
+def settle_on_feature(pair, k, v, tol, warm, work, scratch, fscratch, out):
+    """Certify the distance of an STP-BV to the other body's feature of the loose search's simplex
+    (k points in work, ids in scratch; v: its closest point of the hulls' difference and |v|^2), a
+    vertex or an edge: the distance is then that feature's to the STP-BV, which march_to_feature
+    finds without any descent, if the feature is still the other body's nearest along the normal
+    found (the bodies' supports certify it). Returns whether it did (result in out); otherwise the
+    patch finish runs.
+
+    Between two STP-BVs the feature is a side's simplex that is one hull vertex whose small sphere
+    owns the search's normal m = -v / |v| (B's tried first): that side stands as the sphere, its
+    centre the feature and r its margin, and the certificate checks that the sphere owns the
+    march's normal too (near m, where such a sphere is the side's nearest patch). Any hull vertex of
+    the simplex whose sphere owns m would do, but trying those too cost more than it saved
+    (kuka_link_4, random poses: 1.08x against 1.11x unsigned, same process)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    if (kA == STP) == (kB == STP) or k < 1:
+    tol_abs, tol_rel, _ = tol
+    v0, v1, v2, vv = v
+    if k < 1:
         return False
+    if kA == STP and kB == STP:
+        n = math.sqrt(vv)
+        count = scratch[WARM_COUNT]
+        e0, e1, e2 = rot_to_b(R, v0 / n, v1 / n, v2 / n)
+        i = _owning_slot(fB, iB, scratch[WARM_SIMPLEX_B:WARM_SIMPLEX_B + count], count, e0, e1, e2)
+        if i >= 0 and _march_a_to_feature(pair, k, i, tol_abs, tol_rel, warm, work, scratch, fscratch, out):
+            return True
+        i = _owning_slot(fA, iA, scratch[WARM_SIMPLEX_A:WARM_SIMPLEX_A + count], count, -v0 / n, -v1 / n, -v2 / n)
+        return i >= 0 and _march_b_to_feature(pair, k, i, tol_abs, tol_rel, warm, work, scratch, fscratch, out)
     if kA == STP:
+        return _march_a_to_feature(pair, k, -1, tol_abs, tol_rel, warm, work, scratch, fscratch, out)
+    if kB == STP:
+        return _march_b_to_feature(pair, k, -1, tol_abs, tol_rel, warm, work, scratch, fscratch, out)
+    return False
+
+
+@kernel(inline="always")
+def _owning_slot(f, ix, ids, k, u0, u1, u2):
+    """0 if a side's k simplex slots all hold one hull vertex whose small sphere owns unit u (local
+    frame), else -1."""
+    h = hull_vertex_of_simplex(ix, ids, k)
+    return 0 if h >= 0 and small_sphere_owns(f, ix, h, u0, u1, u2) else -1
+
+
+@kernel(inline="always")
+def _march_a_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fscratch, out):
+    """settle_on_feature with A the STP-BV that marches to B's feature: B's simplex as a vertex or an
+    edge, or, with B an STP-BV, the hull vertex in its simplex slot (slot >= 0, see _owning_slot),
+    whose small sphere stands for B."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    if slot >= 0:
+        ok, s0, s1, s2, w = True, work[8 + slot, 0], work[8 + slot, 1], work[8 + slot, 2], 0.0
+        t0, t1, t2 = s0, s1, s2
+        pb = small_sphere_of_hull_vertex(iB, scratch[WARM_SIMPLEX_B + slot])
+    else:
         ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[8:12], work[12], k)
-        h = scratch[0]
-        if not ok or not 0 <= h < iA[IDX_H]:
-            return False
-        p, m0, m1, m2, y0, y1, y2, gap = march_to_feature(fA, iA, h, s0, s1, s2, t0, t1, t2, w)
-        if p < 0:
-            return False
-        for c in range(3):
-            out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (m0, m1, m2)[c]
-            # the march's patch owns m: A's support along it is its ball's point
-            fscratch[0, c] = (y0, y1, y2)[c] + (mA - gap) * (m0, m1, m2)[c]
-        settled = _certify(pair, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
-                           KNOWN_A, out)
-        if settled:
-            warm[0] = p
-        return settled
-    ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[4:8], work[12], k)
+        pb = -1
+    h = scratch[0]
+    if not ok or not 0 <= h < iA[IDX_H]:
+        return False
+    p, m0, m1, m2, y0, y1, y2, gap = march_to_feature(fA, iA, h, s0, s1, s2, t0, t1, t2, w)
+    if p < 0:
+        return False
+    for c in range(3):
+        out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (m0, m1, m2)[c]
+        # the march's patch owns m: A's support along it is its ball's point
+        fscratch[0, c] = (y0, y1, y2)[c] + (mA - gap) * (m0, m1, m2)[c]
+    settled = _certify(pair, -1, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+                       KNOWN_A, out)
+    if settled:
+        warm[0] = p
+        if pb >= 0:
+            warm[1] = pb
+    return settled
+
+
+@kernel(inline="always")
+def _march_b_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fscratch, out):
+    """settle_on_feature with B the STP-BV that marches to A's feature (as _march_a_to_feature)."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    if slot >= 0:
+        ok, s0, s1, s2, w = True, work[4 + slot, 0], work[4 + slot, 1], work[4 + slot, 2], 0.0
+        t0, t1, t2 = s0, s1, s2
+        pa = small_sphere_of_hull_vertex(iA, scratch[WARM_SIMPLEX_A + slot])
+    else:
+        ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[4:8], work[12], k)
+        pa = -1
     h = scratch[1]
     if not ok or not 0 <= h < iB[IDX_H]:
         return False
@@ -865,10 +923,12 @@ def settle_on_feature(pair, k, tol_abs, tol_rel, warm, work, scratch, fscratch,
     for c in range(3):
         out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (m0, m1, m2)[c]
         fscratch[1, c] = (b0, b1, b2)[c] - mB * (m0, m1, m2)[c]
-    settled = _certify(pair, -1, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
+    settled = _certify(pair, pa, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
                        KNOWN_B, out)
     if settled:
         warm[1] = p
+        if pa >= 0:
+            warm[0] = pa
     return settled
 
 
@@ -980,8 +1040,7 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
             if settle_on_small_spheres(pair, k, v0, v1, v2, vv, tol, warm,
                                        work, scratch, fscratch, out):
                 return _done(out, extra, dir_io)
-            if settle_on_feature(pair, k, tol_abs, tol_rel, warm, work, scratch,
-                                 fscratch, out):
+            if settle_on_feature(pair, k, (v0, v1, v2, vv), tol, warm, work, scratch, fscratch, out):
                 return _done(out, extra, dir_io)
             n = math.sqrt(vv)
             used = finish_on_patches(pair, (-v0 / n, -v1 / n, -v2 / n), tol, warm, work, scratch, fscratch, False, out,
