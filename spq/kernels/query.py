@@ -867,18 +867,25 @@ def _owning_slot(f, ix, ids, k, u0, u1, u2):
 
 
 @kernel(inline="always")
+def _feature_of(work, row, k, slot, ix, ids):
+    """(ok, s, t, w, sphere): the feature march_to_feature goes to, of the side whose simplex points
+    are work's rows row to row + k - 1 (A's frame): those points as a segment (see _segment_of),
+    sphere -1; or, with slot >= 0 (that side an STP-BV), the hull vertex in that slot (ids: the
+    side's simplex ids) as a point, and its small sphere."""
+    if slot >= 0:
+        s0, s1, s2 = work[row + slot, 0], work[row + slot, 1], work[row + slot, 2]
+        return True, s0, s1, s2, s0, s1, s2, 0.0, small_sphere_of_hull_vertex(ix, ids[slot])
+    ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[row:row + 4], work[12], k)
+    return ok, s0, s1, s2, t0, t1, t2, w, -1
+
+
+@kernel(inline="always")
 def _march_a_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fscratch, out):
     """settle_on_feature with A the STP-BV that marches to B's feature: B's simplex as a vertex or an
     edge, or, with B an STP-BV, the hull vertex in its simplex slot (slot >= 0, see _owning_slot),
     whose small sphere stands for B."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    if slot >= 0:
-        ok, s0, s1, s2, w = True, work[8 + slot, 0], work[8 + slot, 1], work[8 + slot, 2], 0.0
-        t0, t1, t2 = s0, s1, s2
-        pb = small_sphere_of_hull_vertex(iB, scratch[WARM_SIMPLEX_B + slot])
-    else:
-        ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[8:12], work[12], k)
-        pb = -1
+    ok, s0, s1, s2, t0, t1, t2, w, pb = _feature_of(work, 8, k, slot, iB, scratch[WARM_SIMPLEX_B:WARM_SIMPLEX_B + 4])
     h = scratch[0]
     if not ok or not 0 <= h < iA[IDX_H]:
         return False
@@ -902,13 +909,7 @@ def _march_a_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fs
 def _march_b_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fscratch, out):
     """settle_on_feature with B the STP-BV that marches to A's feature (as _march_a_to_feature)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    if slot >= 0:
-        ok, s0, s1, s2, w = True, work[4 + slot, 0], work[4 + slot, 1], work[4 + slot, 2], 0.0
-        t0, t1, t2 = s0, s1, s2
-        pa = small_sphere_of_hull_vertex(iA, scratch[WARM_SIMPLEX_A + slot])
-    else:
-        ok, s0, s1, s2, t0, t1, t2, w = _segment_of(work[4:8], work[12], k)
-        pa = -1
+    ok, s0, s1, s2, t0, t1, t2, w, pa = _feature_of(work, 4, k, slot, iA, scratch[WARM_SIMPLEX_A:WARM_SIMPLEX_A + 4])
     h = scratch[1]
     if not ok or not 0 <= h < iB[IDX_H]:
         return False
