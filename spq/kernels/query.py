@@ -880,6 +880,17 @@ def _feature_of(work, row, k, slot, ix, ids):
 
 
 @kernel(inline="always")
+def _kept(settled, warm, pa, pb):
+    """settled; if so, the patches that settled it (-1: a side that is no STP-BV) seed the next query."""
+    if settled:
+        if pa >= 0:
+            warm[0] = pa
+        if pb >= 0:
+            warm[1] = pb
+    return settled
+
+
+@kernel(inline="always")
 def _march_a_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fscratch, out):
     """settle_on_feature with A the STP-BV that marches to B's feature: B's simplex as a vertex or an
     edge, or, with B an STP-BV, the hull vertex in its simplex slot (slot >= 0, see _owning_slot),
@@ -896,13 +907,7 @@ def _march_a_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fs
         out[OUT_POINT_B + c] = (y0, y1, y2)[c] - mB * (m0, m1, m2)[c]
         # the march's patch owns m: A's support along it is its ball's point
         fscratch[0, c] = (y0, y1, y2)[c] + (mA - gap) * (m0, m1, m2)[c]
-    settled = _certify(pair, -1, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
-                       KNOWN_A, out)
-    if settled:
-        warm[0] = p
-        if pb >= 0:
-            warm[1] = pb
-    return settled
+    return _kept(_certify(pair, -1, pb, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, KNOWN_A, out), warm, p, pb)
 
 
 @kernel(inline="always")
@@ -924,13 +929,7 @@ def _march_b_to_feature(pair, k, slot, tol_abs, tol_rel, warm, work, scratch, fs
     for c in range(3):
         out[OUT_POINT_A + c] = (w0, w1, w2)[c] + mA * (m0, m1, m2)[c]
         fscratch[1, c] = (b0, b1, b2)[c] - mB * (m0, m1, m2)[c]
-    settled = _certify(pair, pa, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch,
-                       KNOWN_B, out)
-    if settled:
-        warm[1] = p
-        if pa >= 0:
-            warm[0] = pa
-    return settled
+    return _kept(_certify(pair, pa, -1, m0, m1, m2, tol_abs, tol_rel, warm, fscratch, KNOWN_B, out), warm, pa, p)
 
 
 @kernel(inline="always")
