@@ -66,6 +66,7 @@ from spq.kernels.epa import EPA_RESULT, bounds_closed, epa, epa_run, epa_start
 from spq.kernels.epa_layout import EPA_TMP
 from spq.kernels.signed import (
     HULL_CONTINUED,
+    HULL_CORES,
     HULL_PATCHES,
     HULL_RESTARTED,
     HULL_SETTLED,
@@ -1218,7 +1219,11 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
     Otherwise the patches facing along the hulls' normal settle it (finish_on_patches, with the
     small-ball certificate of _certify_overlap) while the overlap is shallower than r; else the EPA
     goes on from the hulls' polytope (its points lie inside the STP-BVs' cores, their ball hulls at
-    R - r) on the cores' supports, r carried as margin (core_pair)."""
+    R - r) on the cores' supports, r carried as margin (core_pair).
+
+    Where the hulls lie apart (by less than the radii) and the patches at their normal do not settle
+    it, the cores are searched from the hulls' normal: loosely, the patches at the cores' normal, and
+    else to the full tolerance, with the EPA if they overlap (signed_finish on the cores)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     tol_abs, tol_rel, max_iter = tol
     ka, ma, fa, ia = hull_core(kA, mA, fA, iA)
@@ -1268,8 +1273,32 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
             # (the patches were tried above unless the loose search gave no normal)
             if not patches_tried and _patches_settle(pair, n0, n1, n2, tol, warm, work, iwork, out, it + eit):
                 return int(out[OUT_STATUS])
-            # the EPA on the bodies, from their support along the hulls' normal
-            k = _support_simplex(pair, n0, n1, n2, warm, work)
+            # the cores from the hulls' normal (the STP-BVs' ball hulls at R - r, r as margin): a
+            # descent, then the EPA where they overlap (signed_finish). The bodies' surfaces curve at r
+            # (small spheres, tori), the cores' at R - r or not at all (their small spheres are points),
+            # so both converge in a few steps where the bodies' EPA took dozens. The cores' search keeps
+            # its own warm state: warm keeps the hulls' simplex, the next coherent query's start.
+            core = core_pair(pair, hulls)
+            cw = iwork[WARM_SIZE:EPA_IOFF]
+            clear_warm(cw)
+            cw[WARM_FEATURE_A], cw[WARM_FEATURE_B] = warm[WARM_FEATURE_A], warm[WARM_FEATURE_B]
+            dirv[0], dirv[1], dirv[2] = n0, n1, n2
+            status, k, v0, v1, v2, vv, lower, more = descend(core, (tol_abs, max(tol_rel, LOOSE_REL_TOL), max_iter),
+                                                             dirv, cw, work)
+            eit += more
+            if status == SEPARATED and vv > 0.0:
+                # the cores apart: the patches facing along their normal (the small balls' certificate)
+                d = math.sqrt(vv)
+                if _patches_settle(pair, -v0 / d, -v1 / d, -v2 / d, tol, warm, work, iwork, out, it + eit):
+                    return int(out[OUT_STATUS])
+                clear_warm(cw)
+                cw[WARM_FEATURE_A], cw[WARM_FEATURE_B] = warm[WARM_FEATURE_A], warm[WARM_FEATURE_B]
+                dirv[0], dirv[1], dirv[2] = -v0, -v1, -v2
+                status, k, v0, v1, v2, vv, lower, more = descend(core, tol, dirv, cw, work)
+                eit += more
+            work[EPA_ROW + EPA_TMP + 1, 3] = HULL_CORES
+            dirv[0], dirv[1], dirv[2] = n0, n1, n2
+            return signed_finish(core, tol, status, k, vv, lower, it + eit, dirv, cw, work, iwork, out)
     upper0 = 0.0 if status == OVERLAPPING else math.sqrt(vv)
     nv = 0
     if status != SEPARATED and status != FAILED:
@@ -1411,16 +1440,3 @@ def _patches_settle(pair, n0, n1, n2, tol, warm, work, iwork,
     work[EPA_ROW + EPA_TMP + 1, 3] = HULL_PATCHES
     out[OUT_ITERATIONS] = iterations + used
     return True
-
-
-@kernel
-def _support_simplex(pair, n0, n1, n2, warm, work):
-    """A one-point simplex for the EPA in the descent's rows: the bodies' support along n. Returns 1."""
-    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    minkowski_support(pair, n0, n1, n2, warm, work[4], work[8], work[16])
-    for c in range(3):
-        work[0, c] = work[4, c] - work[8, c]
-    work[20, 0] = warm[WARM_FEATURE_A]
-    work[21, 0] = warm[WARM_FEATURE_B]
-    work[12, 0] = 1.0
-    return 1

@@ -45,7 +45,7 @@ from spq.kernels.jit import kernel
 from spq.kernels.newton_normal import step_on_sphere, tangent_basis
 
 # how signed_from_hulls ended, kept in the scratch (work[EPA_ROW + EPA_TMP + 1, 3]) for diagnostics
-HULL_SETTLED, HULL_CONTINUED, HULL_RESTARTED, HULL_PATCHES = 1, 2, 3, 4
+HULL_SETTLED, HULL_CONTINUED, HULL_RESTARTED, HULL_PATCHES, HULL_CORES = 1, 2, 3, 4, 5
 
 
 @kernel(inline="always")
