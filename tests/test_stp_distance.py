@@ -476,10 +476,10 @@ def test_two_stp_bvs_overlapping_with_their_hulls_apart_agree_with_the_depth_ora
     # Two STP-BVs may overlap by less than 2r while their hulls are apart. Where the patches facing
     # along the hulls' normal do not settle it, signed_from_hulls takes the cores (the ball hulls at
     # R - r, r as margin): a loose descent, the patches at its normal, else the cores' full descent and
-    # EPA. On the depth suite's STP-BV (16 of the link's points), the first 40 poses of seed 0 whose hulls
-    # lie apart by less than 2r (all overlapping; 10 reach the cores' full search): every answer within 1e-8 m of the independent
-    # oracle's (brute-force supports, a polished normal), its interval holding it, and the witness
-    # points spanning the signed distance along the normal.
+    # EPA. On the depth suite's STP-BV (16 of the link's points), the first 40 poses of seed 0 whose
+    # hulls lie apart by less than 2r (all overlapping; 10 reach the cores' full search): every answer
+    # within 1e-8 m of the independent oracle's (brute-force supports, a polished normal), its interval
+    # holding it, and the witness points spanning the signed distance along the normal.
     from harness.references import depth_oracle as do
     from tests.conftest import require_shared_datasets
 

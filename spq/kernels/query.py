@@ -1273,11 +1273,12 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
             # (the patches were tried above unless the loose search gave no normal)
             if not patches_tried and _patches_settle(pair, n0, n1, n2, tol, warm, work, iwork, out, it + eit):
                 return int(out[OUT_STATUS])
-            # the cores from the hulls' normal (the STP-BVs' ball hulls at R - r, r as margin): a
-            # descent, then the EPA where they overlap (signed_finish). The bodies' surfaces curve at r
-            # (small spheres, tori), the cores' at R - r or not at all (their small spheres are points),
-            # so both converge in a few steps where the bodies' EPA took dozens. The cores' search keeps
-            # its own warm state: warm keeps the hulls' simplex, the next coherent query's start.
+            # the cores from the hulls' normal (the STP-BVs' ball hulls at R - r, r as margin), not the
+            # EPA on the bodies, whose surfaces curve at r (45 iterations on kuka_link_4): a loose
+            # descent, whose normal the patches mostly settle; else the full descent (the cores' nearly
+            # flat faces take it about 30 steps) and the EPA where they overlap (signed_finish). The
+            # cores' search keeps its own warm state: warm keeps the hulls' simplex, the next coherent
+            # query's start.
             core = core_pair(pair, hulls)
             cw = iwork[WARM_SIZE:EPA_IOFF]
             clear_warm(cw)
@@ -1305,8 +1306,9 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
         nv, top, c0, c1, c2, low = epa_start(hulls, 4 if status == OVERLAPPING else k,
                                              (work[0:4], work[4:8], work[8:12], work[20:22]), warm, work, iwork, out)
     if nv == 4:
-        outcome, closed, upper, low, more, nv, top = epa_run(hulls, (tol_abs, max(tol_rel, HULLS_EPA_REL), max_iter), nv,
-                                                             top, (c0, c1, c2), upper0, low, warm, work, iwork, out)
+        loose = (tol_abs, max(tol_rel, HULLS_EPA_REL), max_iter)
+        outcome, closed, upper, low, more, nv, top = epa_run(hulls, loose, nv, top, (c0, c1, c2), upper0, low, warm,
+                                                             work, iwork, out)
         eit += more
         h = 0.0
         if outcome == EPA_RESULT:
