@@ -1213,9 +1213,10 @@ def signed_from_hulls(pair, tol, status, k, vv, it, warm,
 
     First the EPA between the hulls, which converges in a few steps (polytopes), to a relative gap of
     HULLS_EPA_REL; the STP-BV contains its hull grown by r, so the hulls' depth plus the radii bounds
-    the bodies' depth from below. Where the facing patch is a small sphere (the commonest case), the
-    STP-BV's support along the hulls' normal is the grown hull's: the hulls' run goes on to the full
-    tolerance, and the bodies' own supports close the certificate.
+    the bodies' depth from below. Where the facing patch is a small sphere (on kuka_link_4's overlaps,
+    about one STP-PCH overlap in six and no STP-STP one), the STP-BV's support along the hulls' normal
+    is the grown hull's: the hulls' run goes on to the full tolerance, and the bodies' own supports
+    close the certificate.
     Otherwise the patches facing along the hulls' normal settle it (finish_on_patches, with the
     small-ball certificate of _certify_overlap) while the overlap is shallower than r; else the EPA
     goes on from the hulls' polytope (its points lie inside the STP-BVs' cores, their ball hulls at
