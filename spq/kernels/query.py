@@ -284,7 +284,7 @@ BALL_ALTERNATIONS = 60  # far-point alternations between two tori; each shrinks 
 # Alternations stop once the centres move less than this times their distance: the normal is then off
 # by about 1e-6 rad where they contract 4x a step (the certificate checks it either way), and the
 # slab's gap grows with that error's square times about the balls' radii (R, 2 m on kuka_link_4):
-# 2e-12 m at most, far below the tolerance (1e-10 m). 1e-10 took 8.8 alternations a query that
+# about 2e-12 m there, far below the tolerance (1e-10 m). 1e-10 took 8.8 alternations a query that
 # alternates, against 7.6, for nothing (STP-STP signed 1.009x to 1.015x, same process; stop 112).
 BALL_SETTLED = 1e-6
 
