@@ -357,6 +357,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bench)
 
+    p = sub.add_parser("ab", help="same-process A/B: spq at two git revisions (or the working tree) timed against "
+                                  "each other on the same poses, batched and per call, results compared bit for bit")
+    p.add_argument("old", nargs="?", default="HEAD", help="git revision of the old version (default: HEAD), or "
+                                                          "'working-tree'")
+    p.add_argument("new", nargs="?", default="working-tree",
+                   help="git revision of the new version (default: the working tree's files as they are)")
+    p.add_argument("--pairs", nargs="+", default=["PCH-PCH", "STP-PCH", "STP-STP"],
+                   help="pair types (default: PCH-PCH STP-PCH STP-STP)")
+    p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
+    p.add_argument("--poses", type=int, default=20000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--range", type=float, default=0.3, help="translation range (m), uniform in ±range")
+    p.add_argument("--repeats", type=int, default=7, help="rounds: each block timed this many times (default 7)")
+    p.add_argument("--block", type=int, default=BLOCK, help=f"poses per block (default {BLOCK})")
+    p.add_argument("--per-call", type=int, default=4000, dest="per_call",
+                   help="poses timed per call (Pair.cold_distance in a loop; default 4000, 0: none)")
+    p.add_argument("--unsigned", dest="signed", action="store_false", help="unsigned queries (default: signed)")
+    p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m)")
+    p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m)")
+    p.add_argument("--repo", default=".", help="the git checkout the revisions come from (default: .)")
+    p.add_argument("--out", default=None, help="folder for ab.csv and ab.md (default: print only)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_suite("ab"))
+
     p = sub.add_parser("continuity", help="witness-point / normal continuity and gradient check along trajectories")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--seed", type=int, default=0)

@@ -59,24 +59,30 @@ def block_bounds(n: int, block: int) -> list[tuple[int, int]]:
 
 
 def blocked_times(jobs: dict, repeats: int, block: int = BLOCK, progress=None, clock=time.perf_counter,
-                  before_round=None) -> dict:
+                  before_round=None, alternate: bool = False) -> dict:
     """{key: (seconds, [result of each block])} for jobs {key: (fn, array, ...)}: fn takes the arrays
     (poses, configurations, an output to fill), all of one length, sliced alike along their first axis.
     In each of ``repeats`` rounds, block k of every job runs before block k + 1 of any (a job on
     fewer rows has fewer blocks); seconds is the sum over a job's blocks of its least time on each.
     The results are the last round's, in block order. progress: a tqdm bar advanced once per timed
     call; clock: the timer (seconds); before_round: an untimed call at the start of each round (a
-    scene's reset, so that warm starts carried from block to block start alike in every round)."""
+    scene's reset, so that warm starts carried from block to block start alike in every round);
+    alternate: the jobs' order reversed on every other block and round (an A/B of two versions, where
+    the job that runs second on a block may find the caches and predictors as the first left them)."""
     if repeats < 1:
         raise ValueError(f"repeats must be at least 1, got {repeats}")
     bounds = {key: block_bounds(len(job[1]), block) for key, job in jobs.items()}
     least = {key: [math.inf] * len(b) for key, b in bounds.items()}
     results = {key: [None] * len(b) for key, b in bounds.items()}
-    for _ in range(repeats):
+    for r in range(repeats):
         if before_round is not None:
             before_round()
         for k in range(max((len(b) for b in bounds.values()), default=0)):
-            for key, (fn, *arrays) in jobs.items():
+            keys = list(jobs)
+            if alternate and (r + k) % 2 == 1:
+                keys.reverse()
+            for key in keys:
+                fn, *arrays = jobs[key]
                 if k >= len(bounds[key]):
                     continue
                 start, stop = bounds[key][k]

@@ -1,0 +1,162 @@
+"""The A/B suite: two versions of spq timed against each other in one process, on the same poses.
+
+Every hot-path change is judged by a same-process A/B (see the project's guide): the old and the new
+kernels on one link's random pose pairs, batched and per call, the overlapping poses also alone, blocks
+of poses timed in turn (harness.suites.bench.timing, the two versions' order alternating),
+each version's least time per block summed. It also says whether the two versions' result rows
+(distance, witness points, normal, bounds, iterations, status) are bit-identical, and how many differ.
+The versions are copies of the package at git revisions, or the working tree (harness.suites.ab.packages).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from harness.suites import Output, Table, frame_lines
+from harness.suites.bench.timing import BLOCK, blocked_times
+
+PAIR_TYPES = ("PCH-PCH", "STP-PCH", "STP-STP")
+
+
+@dataclass
+class Config:
+    old: str = "HEAD"  # git revision, or "working-tree"
+    new: str = "working-tree"
+    pairs: list[str] = field(default_factory=lambda: list(PAIR_TYPES))
+    object: str = "kuka_link_4"  # dataset name or mesh path
+    poses: int = 20000
+    seed: int = 0
+    range: float = 0.3  # m: translations uniform in ±range
+    repeats: int = 7  # rounds
+    block: int = BLOCK
+    per_call: int = 4000  # poses timed per call (Pair.cold_distance in a Python loop); 0: none
+    signed: bool = True
+    r: float = 0.005  # m: STP-BV small radius
+    R: float = 2.0  # m: STP-BV big radius
+    repo: str = "."  # the git checkout the revisions are read from
+    progress: bool = False
+
+
+def _check(config: Config) -> None:
+    unknown = [p for p in config.pairs if p not in PAIR_TYPES]
+    if unknown or not config.pairs:
+        raise ValueError(f"pairs must be some of {list(PAIR_TYPES)}; got {config.pairs}")
+    for name in ("poses", "repeats", "block"):
+        if getattr(config, name) < 1:
+            raise ValueError(f"{name} must be at least 1; got {getattr(config, name)}")
+    if config.per_call < 0:
+        raise ValueError(f"per_call must be 0 or more; got {config.per_call}")
+
+
+def rows_differing(a: np.ndarray, b: np.ndarray) -> int:
+    """Result rows of two (N, OUT_SIZE) arrays that are not equal bit for bit (NaN equal to NaN)."""
+    same = (a == b) | (np.isnan(a) & np.isnan(b))
+    return int((~same.all(axis=1)).sum())
+
+
+STATUS_COLUMN = 13  # result_rows' column of the status code
+
+
+def result_rows(batch) -> np.ndarray:
+    """(N, 14) rows of a BatchDistances, from its public fields (the same in every version): distance,
+    point_a (3), point_b (3), normal (3), lower and upper bounds, iterations, status code (STATUS_COLUMN)."""
+    return np.column_stack([batch.distance, batch.point_a, batch.point_b, batch.normal, batch.lower_bound,
+                            batch.upper_bound, batch.iterations, batch.status_code]).astype(np.float64)
+
+
+def _pairs(package, object_name: str, kinds: list[str], signed: bool, r: float, R: float) -> dict:
+    from datasets import load_object
+
+    pch = load_object(object_name)
+    shapes = {"PCH": package.Polyhedron(pch.vertices, pch.faces)}
+    if any("STP" in k for k in kinds):
+        shapes["STP"] = package.STPBV.from_points(pch.vertices, r, R)
+    return {k: package.Pair(shapes[k.split("-")[0]], shapes[k.split("-")[1]], signed=signed) for k in kinds}
+
+
+def run(config: Config) -> Output:
+    from harness.report.meta import run_metadata
+    from harness.suites.ab import packages
+    from harness.workloads.poses import random_poses
+    from spq.kernels.gjk import OVERLAPPING
+
+    _check(config)
+    prepared = [packages.prepare(config.repo, rev) for rev in (config.old, config.new)]
+    if prepared[0][0] == prepared[1][0]:
+        raise ValueError(f"{config.old} and {config.new} hold the same spq sources: nothing to compare")
+    versions = [packages.load(name, folder) for name, _, folder in prepared]
+    pairs = [_pairs(v, config.object, config.pairs, config.signed, config.r, config.R) for v in versions]
+    poses_a, poses_b = random_poses(config.poses, config.seed, config.range)
+    rows = []
+    bar = None
+    if config.progress:
+        from tqdm import tqdm
+
+        print(f"spq ab: the first calls compile each version's kernels unless its cache ({prepared[0][2].parent}) "
+              "holds them (minutes each)", flush=True)
+        bar = tqdm(desc="ab", unit="run", leave=False)
+    for kind in config.pairs:
+        old, new = pairs[0][kind], pairs[1][kind]
+        first = [result_rows(p.distances(poses_a, poses_b, coherent=False)) for p in (old, new)]  # compiles
+        differing = rows_differing(first[0], first[1])
+        overlapping = first[0][:, STATUS_COLUMN] == OVERLAPPING
+        sets = {"all": np.arange(config.poses), "overlapping": np.flatnonzero(overlapping)}
+        for label, index in sets.items():
+            if len(index) == 0:
+                continue
+            pa, pb = poses_a[index], poses_b[index]
+            jobs = {side: (lambda a, b, p=p: p.distances(a, b, coherent=False), pa, pb)
+                    for side, p in (("old", old), ("new", new))}
+            times = _times(jobs, config, bar)
+            rows.append(_row(kind, "batched", label, len(index), times, differing))
+        if config.per_call:
+            n = min(config.per_call, config.poses)
+
+            def loop(a, b, p):
+                call = p.cold_distance
+                for i in range(len(a)):
+                    call(a[i], b[i])
+
+            for p in (old, new):  # compiles
+                loop(poses_a[:2], poses_b[:2], p)
+            jobs = {side: (lambda a, b, p=p: loop(a, b, p), poses_a[:n], poses_b[:n])
+                    for side, p in (("old", old), ("new", new))}
+            rows.append(_row(kind, "per call", "all", n, _times(jobs, config, bar), None))
+    if bar is not None:
+        bar.close()
+    table = pd.DataFrame(rows)
+    meta = run_metadata(command="spq ab", old=config.old, old_commit=prepared[0][1], new=config.new,
+                        new_commit=prepared[1][1], packages=[p[0] for p in prepared], seed=config.seed,
+                        poses=config.poses, translation_range_m=config.range, repeats=config.repeats,
+                        block=config.block, signed=config.signed, object=config.object, stp_r=config.r,
+                        stp_R=config.R)
+    notes = (f"spq at {config.old} (old) against spq at {config.new} (new), in one process: two copies of "
+             f"{config.object} (its hull, and its STP-BV with r = {config.r} m, R = {config.R} m), "
+             f"{config.poses} random pose pairs (seed {config.seed}, translations within ±{config.range} m), "
+             f"{'signed' if config.signed else 'unsigned'}, cold. Blocks of {config.block} poses, each timed "
+             f"{config.repeats} times, old and new in turn (their order alternating by block and round); a "
+             "version's time is the sum of its least time on each block. old_over_new > 1: the new version is faster. "
+             "overlapping: the poses the old version finds overlapping (status), timed alone. rows_differing: result "
+             "rows (distance, witness points, normal, bounds, iterations, status) not equal bit for bit, over "
+             "all poses. per call: Pair.cold_distance in a Python loop (the copies' Python path: they leave the "
+             "C extension out).")
+    out = Output(meta=meta, tables=[Table("ab", f"A/B: {config.old} against {config.new}", table, notes)])
+    out.lines = frame_lines(table)
+    return out
+
+
+def _times(jobs: dict, config: Config, bar) -> dict:
+    """{job: seconds}: blocked_times with the two versions' order alternating."""
+    return {key: seconds for key, (seconds, _) in
+            blocked_times(jobs, config.repeats, config.block, progress=bar, alternate=True).items()}
+
+
+def _row(kind: str, mode: str, poses: str, n: int, times: dict, differing) -> dict:
+    old, new = times["old"], times["new"]
+    return {"pair": kind, "mode": mode, "poses": poses, "queries": n, "old_s": old, "new_s": new,
+            "old_over_new": old / new, "rows_differing": differing if differing is not None else "",
+            "old_us_per_query": 1e6 * old / n, "new_us_per_query": 1e6 * new / n}

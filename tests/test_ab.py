@@ -1,0 +1,92 @@
+"""spq ab: copies of the package at two revisions side by side, and how the suite times and compares them.
+
+A whole A/B compiles the kernels twice (minutes), so these tests check its parts: the copies (renamed
+imports, importable beside spq, reused, at a git revision), the row comparison and the alternating order
+of the timed calls."""
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.suites import ab
+from harness.suites.ab import packages
+from harness.suites.bench.timing import blocked_times
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_rename_imports_turns_every_import_of_spq_to_the_copy():
+    source = ("from spq.kernels.jit import kernel\nimport spq.query\nfrom spq import Pair\n"
+              "x = spq.kernels.gjk.OUT_SIZE\nfrom spqr import y\nname = 'spq'\n")
+    out = packages.rename_imports(source, "spq_abc")
+    assert out == ("from spq_abc.kernels.jit import kernel\nimport spq_abc.query\nfrom spq_abc import Pair\n"
+                   "x = spq_abc.kernels.gjk.OUT_SIZE\nfrom spqr import y\nname = 'spq'\n")
+
+
+def test_a_copy_of_the_working_tree_imports_beside_spq_and_is_reused(tmp_path):
+    import spq
+
+    name, resolved, folder = packages.prepare(REPO, packages.WORKING_TREE, tmp_path)
+    assert resolved == packages.WORKING_TREE and name.startswith("spq_")
+    copied = list((folder / name).rglob("*.py"))
+    assert len(copied) == len(list((REPO / "spq").rglob("*.py")))
+    for path in copied:
+        text = path.read_text()
+        assert "from spq." not in text and "import spq." not in text and "from spq import" not in text, path
+    module = packages.load(name, folder)
+    assert module.Pair is not spq.Pair and module.Pair.__module__.startswith(name + ".")
+    assert packages.prepare(REPO, packages.WORKING_TREE, tmp_path) == (name, resolved, folder)
+
+
+def test_a_copy_at_a_revision_is_that_commit_and_a_bad_revision_is_refused(tmp_path):
+    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True, text=True)
+    if head.returncode != 0:
+        pytest.skip("not a git checkout")
+    name, resolved, folder = packages.prepare(REPO, "HEAD", tmp_path)
+    assert resolved == head.stdout.strip()
+    assert (folder / name / "kernels" / "gjk.py").is_file()
+    with pytest.raises(ValueError, match="no-such-revision"):
+        packages.prepare(REPO, "no-such-revision", tmp_path)
+
+
+def test_rows_differing_counts_rows_not_equal_bit_for_bit():
+    a = np.array([[1.0, np.nan], [2.0, 3.0], [0.0, 1.0]])
+    b = np.array([[1.0, np.nan], [2.0, np.nextafter(3.0, 4.0)], [-0.0, 1.0]])
+    assert ab.rows_differing(a, a) == 0
+    assert ab.rows_differing(a, b) == 1  # -0.0 == 0.0; the second row differs by an ulp
+
+
+def test_blocked_times_alternates_which_version_runs_first():
+    calls = []
+
+    def job(key):
+        return lambda a: calls.append((key, int(a[0])))
+
+    poses = np.arange(4)
+    blocked_times({"old": (job("old"), poses), "new": (job("new"), poses)}, 2, block=2, alternate=True)
+    assert calls == [("old", 0), ("new", 0), ("new", 2), ("old", 2),  # round 0: blocks 0, 1
+                     ("new", 0), ("old", 0), ("old", 2), ("new", 2)]  # round 1
+
+
+def test_the_suite_refuses_unknown_pairs_and_empty_sizes():
+    with pytest.raises(ValueError, match="pairs must be some of"):
+        ab.run(ab.Config(pairs=["CSE-CSE"]))
+    with pytest.raises(ValueError, match="repeats must be at least 1"):
+        ab.run(ab.Config(repeats=0))
+
+
+def test_result_rows_are_the_public_fields_in_order():
+    from types import SimpleNamespace
+
+    n = 3
+    rng = np.random.default_rng(0)
+    batch = SimpleNamespace(distance=rng.normal(size=n), point_a=rng.normal(size=(n, 3)),
+                            point_b=rng.normal(size=(n, 3)), normal=rng.normal(size=(n, 3)),
+                            lower_bound=rng.normal(size=n), upper_bound=rng.normal(size=n),
+                            iterations=np.array([4, 5, 6]), status_code=np.array([0, 2, 3], dtype=np.int8))
+    rows = ab.result_rows(batch)
+    assert rows.shape == (n, 14)
+    assert np.array_equal(rows[:, 0], batch.distance) and np.array_equal(rows[:, 7:10], batch.normal)
+    assert list(rows[:, ab.STATUS_COLUMN]) == [0.0, 2.0, 3.0] and list(rows[:, 12]) == [4.0, 5.0, 6.0]
