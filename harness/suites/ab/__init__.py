@@ -11,7 +11,6 @@ The versions are copies of the package at git revisions, or the working tree (ha
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd

@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import io
 import os
 import re
 import shutil
 import subprocess
 import sys
 import tarfile
-import io
 from pathlib import Path
 
 WORKING_TREE = "working-tree"
