@@ -363,8 +363,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "'working-tree'")
     p.add_argument("new", nargs="?", default="working-tree",
                    help="git revision of the new version (default: the working tree's files as they are)")
-    p.add_argument("--pairs", nargs="+", default=["PCH-PCH", "STP-PCH", "STP-STP"],
-                   help="pair types (default: PCH-PCH STP-PCH STP-STP)")
+    p.add_argument("--pairs", nargs="*", default=["PCH-PCH", "STP-PCH", "STP-STP"],
+                   help="pair types (default: PCH-PCH STP-PCH STP-STP; none, with --robot: the robot alone)")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)
@@ -376,6 +376,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--unsigned", dest="signed", action="store_false", help="unsigned queries (default: signed)")
     p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m)")
     p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m)")
+    p.add_argument("--robot", default=None,
+                   help="also a robot scene's cold all-pairs sweep (a name of datasets.robots, e.g. jvrc1)")
+    p.add_argument("--policies", nargs="+", default=["pch", "auto"], help="the robot scene's policies (default: pch auto)")
+    p.add_argument("--configs", type=int, default=1000, help="the robot's random configurations (default 1000)")
+    p.add_argument("--robot-block", type=int, default=50, dest="robot_block",
+                   help="configurations per timed block (default 50)")
     p.add_argument("--repo", default=".", help="the git checkout the revisions come from (default: .)")
     p.add_argument("--out", default=None, help="folder for ab.csv and ab.md (default: print only)")
     p.add_argument("--quiet", action="store_true")

@@ -90,3 +90,59 @@ def test_result_rows_are_the_public_fields_in_order():
     assert rows.shape == (n, 14)
     assert np.array_equal(rows[:, 0], batch.distance) and np.array_equal(rows[:, 7:10], batch.normal)
     assert list(rows[:, ab.STATUS_COLUMN]) == [0.0, 2.0, 3.0] and list(rows[:, 12]) == [4.0, 5.0, 6.0]
+
+
+def _stub_version(out_size, out_distance=0):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(kernels=SimpleNamespace(gjk=SimpleNamespace(OUT_SIZE=out_size, OUT_DISTANCE=out_distance)))
+
+
+def test_sweep_rows_differing_compares_whole_rows_or_only_distances_across_layouts():
+    a = np.zeros((2, 3, 4))
+    b = a.copy()
+    b[1, 2, 3] = 1.0  # one pair's row differs outside its distance
+    assert ab.sweep_rows_differing([_stub_version(4), _stub_version(4)], [a, b]) == 1
+    c = np.zeros((2, 3, 5))  # a version with a longer result row: its distances alone are compared
+    c[0, 0, 0] = 0.5
+    assert ab.sweep_rows_differing([_stub_version(4), _stub_version(5)], [b, c]) == 1
+
+
+def test_sweep_row_times_both_scenes_on_the_same_configurations_and_counts_what_differs():
+    class StubScene:
+        """distances_many writes each pair's row from the configuration; ``bias`` moves one pair."""
+
+        def __init__(self, bias):
+            self.pairs = [(0, 1), (0, 2), (1, 2)]
+            self.bias = bias
+            self.seen = []
+
+        def distances_many(self, qs, coherent=False, out=None):
+            assert coherent is False
+            out = np.empty((len(qs), len(self.pairs), 4)) if out is None else out
+            out[:] = qs.sum(axis=1)[:, None, None]
+            out[:, 2, 0] += self.bias
+            self.seen.append(np.array(qs))
+            return out
+
+    qs = np.arange(20.0).reshape(10, 2)
+    old, new = StubScene(0.0), StubScene(1.0)
+    config = ab.Config(repeats=2, robot_block=4)
+    row = ab.sweep_row([_stub_version(4), _stub_version(4)], [old, new], qs, "bot pch", config, None)
+    assert row["pair"] == "bot pch (3 pairs)" and row["mode"] == "cold sweep" and row["queries"] == 30
+    assert row["rows_differing"] == 10  # the third pair of every configuration
+    assert row["old_s"] > 0 and row["new_s"] > 0
+    timed = [q for q in old.seen if len(q) != 2]  # (the first call, on two configurations, compiles)
+    assert sum(len(q) for q in timed) == 2 * len(qs)  # every configuration in each of the two rounds
+    assert np.array_equal(np.concatenate(timed)[:len(qs)], qs) and np.array_equal(np.concatenate(timed)[len(qs):], qs)
+
+
+def test_the_suite_refuses_a_bad_robot_set_up_before_copying_anything():
+    with pytest.raises(ValueError, match="unknown robot"):
+        ab.run(ab.Config(robot="no-such-robot"))
+    with pytest.raises(ValueError, match="policies must be some of"):
+        ab.run(ab.Config(robot="jvrc1", policies=["hull"]))
+    with pytest.raises(ValueError, match="configs must be at least 1"):
+        ab.run(ab.Config(robot="jvrc1", configs=0))
+    with pytest.raises(ValueError, match="none only with a robot"):
+        ab.run(ab.Config(pairs=[]))

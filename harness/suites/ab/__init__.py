@@ -1,9 +1,11 @@
 """The A/B suite: two versions of spq timed against each other in one process, on the same poses.
 
 Every hot-path change is judged by a same-process A/B (see the project's guide): the old and the new
-kernels on one link's random pose pairs, batched and per call, the overlapping poses also alone, blocks
-of poses timed in turn (harness.suites.bench.timing, the two versions' order alternating),
-each version's least time per block summed. It also says whether the two versions' result rows
+kernels on one link's random pose pairs, batched and per call, the overlapping poses also alone, and
+optionally a robot scene's cold all-pairs sweep over random configurations (each version's own Scene, as
+``spq bench robot`` times it); blocks of poses (or configurations) timed in turn
+(harness.suites.bench.timing, the two versions' order alternating), each version's least time per block
+summed. It also says whether the two versions' result rows
 (distance, witness points, normal, bounds, iterations, status) are bit-identical, and how many differ.
 The versions are copies of the package at git revisions, or the working tree (harness.suites.ab.packages).
 """
@@ -37,18 +39,31 @@ class Config:
     r: float = 0.005  # m: STP-BV small radius
     R: float = 2.0  # m: STP-BV big radius
     repo: str = "."  # the git checkout the revisions are read from
+    robot: str | None = None  # a robot of datasets.robots: its cold all-pairs sweep, per policy
+    policies: list[str] = field(default_factory=lambda: ["pch", "auto"])  # the robot's scene policies
+    configs: int = 1000  # random configurations of the robot's sweep (seed: ``seed``)
+    robot_block: int = 50  # configurations per timed block (as spq bench robot)
     progress: bool = False
 
 
 def _check(config: Config) -> None:
+    from spq.scene import SCENE_POLICIES
+
     unknown = [p for p in config.pairs if p not in PAIR_TYPES]
-    if unknown or not config.pairs:
-        raise ValueError(f"pairs must be some of {list(PAIR_TYPES)}; got {config.pairs}")
-    for name in ("poses", "repeats", "block"):
+    if unknown or not (config.pairs or config.robot):
+        raise ValueError(f"pairs must be some of {list(PAIR_TYPES)} (none only with a robot); got {config.pairs}")
+    for name in ("poses", "repeats", "block", "configs", "robot_block"):
         if getattr(config, name) < 1:
             raise ValueError(f"{name} must be at least 1; got {getattr(config, name)}")
     if config.per_call < 0:
         raise ValueError(f"per_call must be 0 or more; got {config.per_call}")
+    if config.robot is not None:
+        from datasets.robots import robot_urdf
+
+        robot_urdf(config.robot)  # an unknown robot or missing files, before any copy compiles
+        bad = [p for p in config.policies if p not in SCENE_POLICIES]
+        if bad or not config.policies:
+            raise ValueError(f"policies must be some of {list(SCENE_POLICIES)}; got {config.policies}")
 
 
 def rows_differing(a: np.ndarray, b: np.ndarray) -> int:
@@ -88,7 +103,8 @@ def run(config: Config) -> Output:
     if prepared[0][0] == prepared[1][0]:
         raise ValueError(f"{config.old} and {config.new} hold the same spq sources: nothing to compare")
     versions = [packages.load(name, folder) for name, _, folder in prepared]
-    pairs = [_pairs(v, config.object, config.pairs, config.signed, config.r, config.R) for v in versions]
+    pairs = [_pairs(v, config.object, config.pairs, config.signed, config.r, config.R) if config.pairs else {}
+             for v in versions]
     poses_a, poses_b = random_poses(config.poses, config.seed, config.range)
     rows = []
     bar = None
@@ -125,6 +141,15 @@ def run(config: Config) -> Output:
             jobs = {side: (lambda a, b, p=p: loop(a, b, p), poses_a[:n], poses_b[:n])
                     for side, p in (("old", old), ("new", new))}
             rows.append(_row(kind, "per call", "all", n, _times(jobs, config, bar), None))
+    if config.robot is not None:
+        qs = None
+        for policy in config.policies:
+            scenes = [_scene(v, config.robot, policy, config.r, config.R) for v in versions]
+            if qs is None:
+                from harness.workloads.robot_poses import random_configurations
+
+                qs = random_configurations(scenes[0].model, config.configs, config.seed)
+            rows.append(sweep_row(versions, scenes, qs, f"{config.robot} {policy}", config, bar))
     if bar is not None:
         bar.close()
     table = pd.DataFrame(rows)
@@ -132,26 +157,71 @@ def run(config: Config) -> Output:
                         new_commit=prepared[1][1], packages=[p[0] for p in prepared], seed=config.seed,
                         poses=config.poses, translation_range_m=config.range, repeats=config.repeats,
                         block=config.block, signed=config.signed, object=config.object, stp_r=config.r,
-                        stp_R=config.R)
-    notes = (f"spq at {config.old} (old) against spq at {config.new} (new), in one process: two copies of "
-             f"{config.object} (its hull, and its STP-BV with r = {config.r} m, R = {config.R} m), "
-             f"{config.poses} random pose pairs (seed {config.seed}, translations within ±{config.range} m), "
-             f"{'signed' if config.signed else 'unsigned'}, cold. Blocks of {config.block} poses, each timed "
-             f"{config.repeats} times, old and new in turn (their order alternating by block and round); a "
-             "version's time is the sum of its least time on each block. old_over_new > 1: the new version is faster. "
-             "overlapping: the poses the old version finds overlapping (status), timed alone. rows_differing: result "
-             "rows (distance, witness points, normal, bounds, iterations, status) not equal bit for bit, over "
-             "all poses. per call: Pair.cold_distance in a Python loop (the copies' Python path: they leave the "
-             "C extension out).")
+                        stp_R=config.R, robot=config.robot, policies=config.policies if config.robot else None,
+                        configurations=config.configs if config.robot else None,
+                        robot_block=config.robot_block if config.robot else None)
+    notes = f"spq at {config.old} (old) against spq at {config.new} (new), in one process."
+    if config.pairs:
+        notes += (f" Two copies of {config.object} (its hull, and its STP-BV with r = {config.r} m, R = {config.R} m), "
+                  f"{config.poses} random pose pairs (seed {config.seed}, translations within ±{config.range} m), "
+                  f"{'signed' if config.signed else 'unsigned'}, cold, in blocks of {config.block} poses. "
+                  "overlapping: the poses the old version finds overlapping (status), timed alone. rows_differing: "
+                  "result rows (distance, witness points, normal, bounds, iterations, status) not equal bit for bit, "
+                  "over all poses. per call: Pair.cold_distance in a Python loop (the copies' Python path: they "
+                  "leave the C extension out).")
+    if config.robot:
+        notes += (f" {config.robot} <policy>: the robot scene's cold sweep over all its pairs (each version's "
+                  f"Scene.distances_many, unsigned, coherent=False) at {config.configs} random configurations "
+                  f"(seed {config.seed}) in blocks of {config.robot_block}; queries: configurations x pairs, "
+                  "us per query: per pair; rows_differing: the pairs' raw result rows not equal bit for bit.")
+    notes += (f" Each block timed {config.repeats} times, old and new in turn (their order alternating by block "
+              "and round); a version's time is the sum of its least time on each block. old_over_new > 1: the new "
+              "version is faster.")
     out = Output(meta=meta, tables=[Table("ab", f"A/B: {config.old} against {config.new}", table, notes)])
     out.lines = frame_lines(table)
     return out
 
 
-def _times(jobs: dict, config: Config, bar) -> dict:
+def _times(jobs: dict, config: Config, bar, block: int | None = None) -> dict:
     """{job: seconds}: blocked_times with the two versions' order alternating."""
     return {key: seconds for key, (seconds, _) in
-            blocked_times(jobs, config.repeats, config.block, progress=bar, alternate=True).items()}
+            blocked_times(jobs, config.repeats, block or config.block, progress=bar, alternate=True).items()}
+
+
+def _scene(package, robot: str, policy: str, r: float, R: float):
+    """Robot ``robot``'s scene built by one version of spq (its own Scene class)."""
+    from datasets.robots import robot_files
+
+    files = robot_files(robot)
+    return package.Scene.from_urdf(files.urdf, convex_dir=files.convex_dir, mesh_root=files.mesh_root,
+                                   policy=policy, r=r, R=R)
+
+
+def sweep_rows_differing(versions, outs) -> int:
+    """Pair results of two versions' sweeps (N, npairs, OUT_SIZE each) not equal bit for bit: whole raw
+    rows where both versions lay them out alike (the same OUT_SIZE), else the distances alone."""
+    size = [v.kernels.gjk.OUT_SIZE for v in versions]
+    if size[0] == size[1]:
+        return rows_differing(outs[0].reshape(-1, size[0]), outs[1].reshape(-1, size[1]))
+    column = [o[..., v.kernels.gjk.OUT_DISTANCE].reshape(-1, 1) for v, o in zip(versions, outs)]
+    return rows_differing(column[0], column[1])
+
+
+def sweep_row(versions, scenes, qs: np.ndarray, label: str, config: Config, bar) -> dict:
+    """The row of two versions' scenes (the same robot and policy) swept cold over configurations qs, each
+    into its own result array, allocated and touched before the timing (as spq bench robot's)."""
+    outs = []
+    for version, scene in zip(versions, scenes):
+        scene.distances_many(qs[:2], coherent=False)  # compiles, or loads the copy's cache
+        out = np.empty((len(qs), len(scene.pairs), version.kernels.gjk.OUT_SIZE))
+        out.fill(0.0)
+        outs.append(out)
+    jobs = {side: (lambda q, o, s=scene: s.distances_many(q, coherent=False, out=o), qs, out)
+            for side, scene, out in zip(("old", "new"), scenes, outs)}
+    times = _times(jobs, config, bar, config.robot_block)
+    pairs = len(scenes[0].pairs)
+    return _row(f"{label} ({pairs} pairs)", "cold sweep", "configurations", len(qs) * pairs, times,
+                sweep_rows_differing(versions, outs))
 
 
 def _row(kind: str, mode: str, poses: str, n: int, times: dict, differing) -> dict:
