@@ -185,7 +185,9 @@ def test_planted_slowdown_fails_and_advisory_passes(tmp_path, registry, capsys):
         capsys.readouterr()
         codes.append(cli.main(slow))
         out = capsys.readouterr().out
-        if codes[-1] == 1:
+        # (under load another pair's per-call row can be the one caught while this one's drop stays
+        # under the cap by a few per cent: that pair of runs is measured anew too)
+        if codes[-1] == 1 and "PCH-PCH per-call ratio_to_coal" in out:
             break
     assert codes[-1] == 1, f"a 3x slowdown was not caught in {len(codes)} runs: {out}"
     assert "PCH-PCH per-call ratio_to_coal" in out and "regression" in out
