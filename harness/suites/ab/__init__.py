@@ -210,12 +210,12 @@ def sweep_rows_differing(versions, outs) -> int:
 def sweep_row(versions, scenes, qs: np.ndarray, label: str, config: Config, bar) -> dict:
     """The row of two versions' scenes (the same robot and policy) swept cold over configurations qs, each
     into its own result array, allocated and touched before the timing (as spq bench robot's)."""
+    from harness.suites.robot.robot_bench import result_array
+
     outs = []
     for version, scene in zip(versions, scenes):
         scene.distances_many(qs[:2], coherent=False)  # compiles, or loads the copy's cache
-        out = np.empty((len(qs), len(scene.pairs), version.kernels.gjk.OUT_SIZE))
-        out.fill(0.0)
-        outs.append(out)
+        outs.append(result_array(len(qs), len(scene.pairs), version.kernels.gjk.OUT_SIZE))
     jobs = {side: (lambda q, o, s=scene: s.distances_many(q, coherent=False, out=o), qs, out)
             for side, scene, out in zip(("old", "new"), scenes, outs)}
     times = _times(jobs, config, bar, config.robot_block)

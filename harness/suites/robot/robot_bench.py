@@ -75,11 +75,12 @@ def load_scene(config: RobotBenchConfig, policy: str) -> Scene:
                            r=config.r, R=config.R, skip=config.skip)
 
 
-def result_array(configurations: int, pairs: int) -> np.ndarray:
-    """A zeroed (configurations, pairs, OUT_SIZE) result array whose pages are written here, not in a
+def result_array(configurations: int, pairs: int, size: int = OUT_SIZE) -> np.ndarray:
+    """A zeroed (configurations, pairs, size) result array whose pages are written here, not in a
     timed call: np.zeros maps fresh pages lazily, and a first run into them paid the page faults
-    (JVRC-1, 1000 configurations, 63 MB: pch 0.22 -> 0.33 ms per configuration in a single run)."""
-    out = np.empty((configurations, pairs, OUT_SIZE))
+    (JVRC-1, 1000 configurations, 63 MB: pch 0.22 -> 0.33 ms per configuration in a single run).
+    size: the result row's length (OUT_SIZE; another version's in a same-process A/B)."""
+    out = np.empty((configurations, pairs, size))
     out.fill(0.0)
     return out
 
