@@ -189,12 +189,10 @@ def _times(jobs: dict, config: Config, bar, block: int | None = None) -> dict:
 
 
 def _scene(package, robot: str, policy: str, r: float, R: float):
-    """Robot ``robot``'s scene built by one version of spq (its own Scene class)."""
-    from datasets.robots import robot_files
+    """Robot ``robot``'s scene built by one version of spq (its own Scene class), as spq bench robot builds it."""
+    from harness.suites.robot.robot_bench import RobotBenchConfig, load_scene
 
-    files = robot_files(robot)
-    return package.Scene.from_urdf(files.urdf, convex_dir=files.convex_dir, mesh_root=files.mesh_root,
-                                   policy=policy, r=r, R=R)
+    return load_scene(RobotBenchConfig(robot=robot, r=r, R=R), policy, package.Scene)
 
 
 def sweep_rows_differing(versions, outs) -> int:

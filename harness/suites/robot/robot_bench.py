@@ -67,12 +67,13 @@ class RobotBenchConfig:
     workers: int = 1  # > 1: the cold rows also on this many threads (spq.workers), beside one thread's
 
 
-def load_scene(config: RobotBenchConfig, policy: str) -> Scene:
+def load_scene(config: RobotBenchConfig, policy: str, scene_class=Scene) -> Scene:
+    """config.robot's scene under ``policy``; scene_class: another version's Scene (a same-process A/B)."""
     from datasets.robots import robot_files
 
     files = robot_files(config.robot)
-    return Scene.from_urdf(files.urdf, convex_dir=files.convex_dir, mesh_root=files.mesh_root, policy=policy,
-                           r=config.r, R=config.R, skip=config.skip)
+    return scene_class.from_urdf(files.urdf, convex_dir=files.convex_dir, mesh_root=files.mesh_root,
+                                 policy=policy, r=config.r, R=config.R, skip=config.skip)
 
 
 def result_array(configurations: int, pairs: int, size: int = OUT_SIZE) -> np.ndarray:
