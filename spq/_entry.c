@@ -21,9 +21,11 @@ Types:
   shapes and options are the same objects (identity) reuses its Entry.
 - PairQuery(fallback, coherent): Pair.distance and Pair.cold_distance, a method (a descriptor);
   it reads the Pair's `_entry`.
-configure(result_type, layout, status_names, work) says which result type the queries make (result_type's),
-where each field lies in the result vector (spq.kernels.gjk's OUT_*; a NaN distance whose status
-is < 0 is a rejected pose), the status names, and kb.query_work's array, which the module keeps.
+configure(result_type, layout, status_names, work[, old_order]) says which result type the queries make
+(result_type's), where each field lies in the result vector (spq.kernels.gjk's OUT_*; a NaN distance whose
+status is < 0 is a rejected pose), the status names, and kb.query_work's array, which the module keeps;
+old_order (spq.query._OLD_ORDER), whose "warned" lets PlainDistance take spq 0.1's argument order,
+distance(A, pose_a, B, pose_b), once Python has warned about it.
 */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -55,6 +57,9 @@ static PyObject *last_key = NULL, *entry_attr = NULL; /* interned strings */
    own (identity), so that answers alike. */
 static PyThreadState *last_thread = NULL;
 static PyObject *last_of_thread = NULL;
+/* spq.query._OLD_ORDER (configure()'s, or NULL): spq 0.1's argument order, distance(A, pose_a, B, pose_b),
+   takes this path only once Python has given its one DeprecationWarning ("warned" true) */
+static PyObject *old_order = NULL, *warned_key = NULL;
 
 /* ---------------------------------------------------------------- Entry */
 
@@ -360,6 +365,23 @@ static Py_ssize_t option_index(PyObject *name) {
     return 8;
 }
 
+/* whether remember()'s tuple `last` holds shapes a and b and the options v[4..7] (identity) */
+static inline int is_last(PyObject *last, PyObject *a, PyObject *b, PyObject *const *v) {
+    return last != NULL && PyTuple_CheckExact(last) && PyTuple_GET_SIZE(last) == 7 &&
+           PyTuple_GET_ITEM(last, 0) == a && PyTuple_GET_ITEM(last, 1) == b &&
+           PyTuple_GET_ITEM(last, 2) == v[4] && PyTuple_GET_ITEM(last, 3) == v[5] &&
+           PyTuple_GET_ITEM(last, 4) == v[6] && PyTuple_GET_ITEM(last, 5) == v[7] &&
+           Py_IS_TYPE(PyTuple_GET_ITEM(last, 6), &EntryType);
+}
+
+/* whether Python has warned about spq 0.1's argument order (a test may reset its flag to see the warning again) */
+static int old_order_warned(void) {
+    if (old_order == NULL) return 0;
+    PyObject *w = PyDict_GetItemWithError(old_order, warned_key);
+    if (w == NULL) PyErr_Clear();
+    return w == Py_True;
+}
+
 static PyObject *plain_vectorcall(WrapperObject *self, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
     Py_ssize_t nargs = PyVectorcall_NARGS(nargsf);
     PyObject *v[8];
@@ -382,14 +404,12 @@ static PyObject *plain_vectorcall(WrapperObject *self, PyObject *const *args, si
         Py_XSETREF(last_of_thread, Py_XNewRef(last));
         last_thread = thread;
     }
-    if (last != NULL && PyTuple_CheckExact(last) && PyTuple_GET_SIZE(last) == 7 &&
-        PyTuple_GET_ITEM(last, 0) == v[0] && PyTuple_GET_ITEM(last, 1) == v[1] &&
-        PyTuple_GET_ITEM(last, 2) == v[4] && PyTuple_GET_ITEM(last, 3) == v[5] &&
-        PyTuple_GET_ITEM(last, 4) == v[6] && PyTuple_GET_ITEM(last, 5) == v[7] &&
-        Py_IS_TYPE(PyTuple_GET_ITEM(last, 6), &EntryType)) {
-        PyObject *result = query((EntryObject *)PyTuple_GET_ITEM(last, 6), v[2], v[3], 0);
-        if (result != NULL || PyErr_Occurred()) return result;
-    }
+    PyObject *result = NULL;
+    if (is_last(last, v[0], v[1], v)) /* (A, B, pose_a, pose_b) */
+        result = query((EntryObject *)PyTuple_GET_ITEM(last, 6), v[2], v[3], 0);
+    else if (is_last(last, v[0], v[2], v) && old_order_warned()) /* spq 0.1's (A, pose_a, B, pose_b) */
+        result = query((EntryObject *)PyTuple_GET_ITEM(last, 6), v[1], v[3], 0);
+    if (result != NULL || PyErr_Occurred()) return result;
     return call_fallback(self, args, nargsf, kwnames);
 }
 
@@ -483,9 +503,9 @@ static PyObject *remember(PyObject *module, PyObject *last) {
 
 static PyObject *configure(PyObject *module, PyObject *args) {
     PyTypeObject *type;
-    PyObject *where, *names, *work_array;
-    if (!PyArg_ParseTuple(args, "O!O!O!O:configure", &PyType_Type, &type, &PyTuple_Type, &where, &PyTuple_Type,
-                          &names, &work_array))
+    PyObject *where, *names, *work_array, *old = NULL;
+    if (!PyArg_ParseTuple(args, "O!O!O!O|O!:configure", &PyType_Type, &type, &PyTuple_Type, &where, &PyTuple_Type,
+                          &names, &work_array, &PyDict_Type, &old))
         return NULL;
     Py_ssize_t got[L_COUNT];
     int ok = type == made_type && PyTuple_GET_SIZE(where) == L_COUNT && is_flat_f64(work_array, 1);
@@ -505,6 +525,7 @@ static PyObject *configure(PyObject *module, PyObject *args) {
     Py_XSETREF(status_names, Py_NewRef(names));
     Py_XSETREF(work, (PyArrayObject *)Py_NewRef(work_array));
     Py_XSETREF(result_type, (PyTypeObject *)Py_NewRef((PyObject *)type));
+    Py_XSETREF(old_order, Py_XNewRef(old));
     Py_RETURN_NONE;
 }
 
@@ -514,7 +535,8 @@ static PyMethodDef module_methods[] = {
     {"result_type", make_result_type, METH_O,
      PyDoc_STR("result_type(doc): the results' type, spq.DistanceResult (made once)")},
     {"configure", configure, METH_VARARGS,
-     PyDoc_STR("configure(result_type, layout, status_names, work): the results' type and layout, and the work array")},
+     PyDoc_STR("configure(result_type, layout, status_names, work[, old_order]): the results' type and layout, the "
+               "work array, and the dict whose 'warned' lets spq 0.1's argument order take the C path")},
     {NULL, NULL, 0, NULL},
 };
 
@@ -530,9 +552,10 @@ PyMODINIT_FUNC PyInit__entry(void) {
         return NULL;
     last_key = PyUnicode_InternFromString("spq._entry.last");
     entry_attr = PyUnicode_InternFromString("_entry");
+    warned_key = PyUnicode_InternFromString("warned");
     for (int j = 0; j < 4; j++)
         if ((options[j] = PyUnicode_InternFromString(option_names[j])) == NULL) return NULL;
-    if (last_key == NULL || entry_attr == NULL) return NULL;
+    if (last_key == NULL || entry_attr == NULL || warned_key == NULL) return NULL;
     PyObject *m = PyModule_Create(&module_def);
     if (m == NULL) return NULL;
     if (PyModule_AddObjectRef(m, "Entry", (PyObject *)&EntryType) < 0 ||

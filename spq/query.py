@@ -438,7 +438,7 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
 
     The shapes come first, then their poses, as in :func:`distances` and ``Pair(A, B).distance(pose_a,
     pose_b)``. The order of spq 0.1, ``distance(A, pose_a, B, pose_b)``, still works for this release,
-    with a DeprecationWarning (once per process).
+    with a DeprecationWarning (once per process), and after it as fast as the new order.
 
     GJK stops when the certified gap (upper_bound - lower_bound) is at most tol + rel_tol * |distance|.
     Overlapping shapes give distance 0 and status 'overlapping'; with signed=True, distance = -depth
@@ -448,8 +448,10 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
     Raises ValueError for bad poses or tolerances.
     """
     last = getattr(_SCRATCH, "last", None)  # a loop over poses asks for the same pair, with the same objects
-    if last is not None and last[0] is A and last[1] is B and last[2] is tol and last[3] is rel_tol \
-            and last[4] is max_iter and last[5] is signed:  # then B is a Shape: the new order
+    if last is not None and last[0] is A and last[2] is tol and last[3] is rel_tol and last[4] is max_iter \
+            and last[5] is signed and (last[1] is B or (last[1] is pose_a and _OLD_ORDER["warned"])):
+        if last[1] is not B:  # spq 0.1's order, (A, pose_a, B, pose_b), already warned about: as fast as the new
+            B, pose_a = pose_a, B
         # Pair.cold_distance inlined on the pair's machine code and arrays, kept flat in `last` (_plain_fast):
         # the calls and attribute reads it saves are about 0.6 us of a 2 us plain call. Any other
         # pose, and any error, takes Pair.cold_distance.
@@ -548,7 +550,7 @@ def _with_compiled_entries() -> None:
     0.8 us less, and DistanceResult's fields are read in C. The Python ones stay as their ``__wrapped__``."""
     global distance
     layout = (OUT_SIZE, OUT_POINT_A, OUT_POINT_B, OUT_NORMAL, OUT_LOWER, OUT_UPPER, OUT_ITERATIONS, OUT_STATUS)
-    _entry.configure(DistanceResult, layout, tuple(STATUS_NAMES), kb.query_work())
+    _entry.configure(DistanceResult, layout, tuple(STATUS_NAMES), kb.query_work(), _OLD_ORDER)
     distance = functools.update_wrapper(_entry.PlainDistance(distance, distance.__defaults__), distance)
     for name, coherent in (("distance", True), ("cold_distance", False)):
         python = Pair.__dict__[name]

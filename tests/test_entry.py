@@ -165,6 +165,40 @@ def test_c_entries_take_the_python_path_and_its_errors_for_anything_else():
                 assert np.array_equal(c, py, equal_nan=True)
 
 
+def test_old_argument_order_once_warned_takes_the_fast_paths(monkeypatch):
+    """spq 0.1's order, distance(A, pose_a, B, pose_b): after its one DeprecationWarning, every later call
+    answers bit for bit as the new order does, through the C entry (which neither Python path then runs)
+    and through Python's fast path alike, signed or not; with the warning's flag reset, the next such call
+    warns again, the C entry waiting for Python's warning."""
+    import warnings
+
+    a, b = hull(45), spq.STPBV.from_points(hull(46).vertices, 0.01, 2.0)
+    poses = [random_pose(np.random.default_rng(k), 0.8) for k in range(8)]
+    monkeypatch.setitem(sq._OLD_ORDER, "warned", False)
+    for signed in (False, True):
+        results = [spq.distance(a, b, np.eye(4), p, signed=signed) for p in poses]
+        assert {r.status for r in results} == {"separated", "overlapping"}
+        new = [(r.distance, r._out.copy()) for r in results]
+        with pytest.warns(DeprecationWarning) if not sq._OLD_ORDER["warned"] else contextlib.nullcontext():
+            spq.distance(a, np.eye(4), b, poses[0], signed=signed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            python = [(r.distance, r._out.copy()) for r in (PYTHON_PLAIN(a, np.eye(4), b, p, signed=signed) for p in poses)]
+            spq.distance(a, b, np.eye(4), poses[0], signed=signed)  # the C entry's last pair, again
+            calls = {"slow": 0, "python": 0}
+            with monkeypatch.context() as m:  # the slow path packs a pair, Python's fast path allocates the result
+                m.setattr(sq, "_plain_pair", lambda *x: calls.__setitem__("slow", calls["slow"] + 1))
+                m.setattr(sq, "_empty", lambda n: calls.__setitem__("python", calls["python"] + 1))
+                c = [(r.distance, r._out.copy()) for r in (spq.distance(a, np.eye(4), b, p, signed=signed) for p in poses)]
+            assert calls == {"slow": 0, "python": 0}
+        for got in (python, c):
+            for (d, out), (d_new, out_new) in zip(got, new):
+                assert d == d_new and np.array_equal(out, out_new, equal_nan=True)
+    monkeypatch.setitem(sq._OLD_ORDER, "warned", False)
+    with pytest.warns(DeprecationWarning):
+        spq.distance(a, np.eye(4), b, poses[1], signed=True)
+
+
 def test_c_entries_hold_no_references_they_should_not():
     """Many calls leave the reference counts of the shapes, the poses, the options and the result
     type where they were, and a result holds only its own array."""
