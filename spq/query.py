@@ -449,7 +449,8 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
     """
     last = getattr(_SCRATCH, "last", None)  # a loop over poses asks for the same pair, with the same objects
     if last is not None and last[0] is A and last[2] is tol and last[3] is rel_tol and last[4] is max_iter \
-            and last[5] is signed and (last[1] is B or (last[1] is pose_a and _OLD_ORDER["warned"])):
+            and last[5] is signed and (last[1] is B or (last[1] is pose_a and _OLD_ORDER["warned"]
+                                                         and not isinstance(B, Shape))):
         if last[1] is not B:  # spq 0.1's order, (A, pose_a, B, pose_b), already warned about: as fast as the new
             B, pose_a = pose_a, B
         # Pair.cold_distance inlined on the pair's machine code and arrays, kept flat in `last` (_plain_fast):

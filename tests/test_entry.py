@@ -132,6 +132,7 @@ def test_c_entries_take_the_python_path_and_its_errors_for_anything_else():
         lambda f: f(a, b, np.eye(4), pb, colour="red"),
         lambda f: f(a, b, np.eye(4), pb, 1e-10, tol=1e-10),
         lambda f: f(a, b, np.eye(4)),
+        lambda f: f(a, a, b, pb),  # a shape for pose_a, the last pair's B: not spq 0.1's order (B is a shape)
         lambda f: f(a, np.eye(4), b, pb),  # spq 0.1's order: a warning, then the answer
     ]
     for k, call in enumerate(calls):
