@@ -448,11 +448,8 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
     Raises ValueError for bad poses or tolerances.
     """
     last = getattr(_SCRATCH, "last", None)  # a loop over poses asks for the same pair, with the same objects
-    if last is not None and last[0] is A and last[2] is tol and last[3] is rel_tol and last[4] is max_iter \
-            and last[5] is signed and (last[1] is B or (last[1] is pose_a and _OLD_ORDER["warned"]
-                                                         and not isinstance(B, Shape))):
-        if last[1] is not B:  # spq 0.1's order, (A, pose_a, B, pose_b), already warned about: as fast as the new
-            B, pose_a = pose_a, B
+    if last is not None and last[0] is A and last[1] is B and last[2] is tol and last[3] is rel_tol \
+            and last[4] is max_iter and last[5] is signed:  # then B is a Shape: the new order
         # Pair.cold_distance inlined on the pair's machine code and arrays, kept flat in `last` (_plain_fast):
         # the calls and attribute reads it saves are about 0.6 us of a 2 us plain call. Any other
         # pose, and any error, takes Pair.cold_distance.
@@ -469,6 +466,9 @@ def distance(A: Shape, B: Shape, pose_a, pose_b, tol: float = DEFAULT_TOL_ABS, r
     if isinstance(pose_a, Shape) and not isinstance(B, Shape):  # the old order: (A, pose_a, B, pose_b)
         _warn_old_order()
         B, pose_a = pose_a, B
+        if last is not None and last[0] is A and last[1] is B and last[2] is tol and last[3] is rel_tol \
+                and last[4] is max_iter and last[5] is signed:  # the last pair: the fast path, in the new order
+            return distance(A, B, pose_a, pose_b, tol, rel_tol, max_iter, signed)
     pair = _plain_pair(A, B, tol, rel_tol, max_iter, signed)
     result = pair.cold_distance(pose_a, pose_b)
     _SCRATCH.last = _plain_fast(A, B, tol, rel_tol, max_iter, signed, pair)

@@ -169,8 +169,8 @@ def test_c_entries_take_the_python_path_and_its_errors_for_anything_else():
 def test_old_argument_order_once_warned_takes_the_fast_paths(monkeypatch):
     """spq 0.1's order, distance(A, pose_a, B, pose_b): after its one DeprecationWarning, every later call
     answers bit for bit as the new order does, through the C entry (which neither Python path then runs)
-    and through Python's fast path alike, signed or not; with the warning's flag reset, the next such call
-    warns again, the C entry waiting for Python's warning."""
+    and through Python's entry (which hands it to the fast path in the new order) alike, signed or not; with
+    the warning's flag reset, the next such call warns again, the C entry waiting for Python's warning."""
     import warnings
 
     a, b = hull(45), spq.STPBV.from_points(hull(46).vertices, 0.01, 2.0)
