@@ -235,6 +235,31 @@ def test_warm_start_along_a_smooth_path_takes_fewer_iterations():
     assert warm.iterations.mean() < cold.iterations.mean()
 
 
+def test_the_support_points_gap_is_tested_exactly_on_the_kinds_with_curved_faces():
+    """descend stops on its support points' own gap only where a side is curved (gjk.is_curved), and
+    skips that test between flat sides, whose simplex point reaches the answer in finitely many steps.
+    Judged on each kind's own support function, not on is_curved's list: over 2,000 directions a flat
+    kind's supports are its few vertices, a curved kind's many points (an STP-BV's core, sharp at its
+    points, still has its big spheres' and arcs' supports between them)."""
+    from spq.kernels.dispatch import support_many
+    from spq.kernels.gjk import is_curved
+    from spq.kernels.kinds import STP_CORE
+
+    rng = np.random.default_rng(0)
+    directions = rng.normal(size=(2000, 3))
+    points = rng.normal(size=(30, 3))
+    hull_ = spq.Polyhedron.from_points(points / np.linalg.norm(points, axis=1)[:, None] * [0.08, 0.06, 0.1])
+    stp = spq.STPBV.from_points(hull_.vertices, 0.005, 2.0)
+    shapes = [hull_, spq.Box(0.1, 0.2, 0.3), spq.Sphere(0.1), spq.Capsule(0.05, 0.2), stp,
+              spq.Superellipsoid(0.1, 0.07, 0.05, 0.5, 1.2)]
+    cases = [(type(s).__name__, s.kernel_data()) for s in shapes]
+    cases = [(name, k.kind, k.fdata, k.idata) for name, k in cases]
+    cases.append(("STP-BV core", STP_CORE, stp.kernel_data().fdata, stp.kernel_data().idata))
+    for name, kind, f, ix in cases:
+        distinct = len(np.unique(support_many(kind, f, ix, directions).round(12), axis=0))
+        assert is_curved(kind) == (distinct > 100), (name, kind, distinct)
+
+
 # --- bad input ------------------------------------------------------------------------------
 @pytest.mark.parametrize("bad, what", [
     (np.full((4, 4), np.nan), "NaN"),

@@ -25,7 +25,7 @@ import numpy as np
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 
-from spq.kernels.kinds import POINT, POLYTOPE
+from spq.kernels.kinds import POINT, POLYTOPE, STP, STP_CORE, SUPERELLIPSOID
 from spq.kernels.dispatch import support_local
 from spq.kernels.epa_layout import EPA_FLOAT_ROWS, EPA_INT_SIZE
 from spq.kernels.facet_bound import facet_lower_bound
@@ -326,6 +326,13 @@ def _push(W, PA, PB, FI, k, pa, pb, warm):
 
 
 @kernel(inline="always")
+def is_curved(kind):
+    """Whether a body of this kind has curved faces (an STP-BV, its core, a superellipsoid), on which the
+    descent's simplex point converges only in the limit."""
+    return kind == STP or kind == STP_CORE or kind == SUPERELLIPSOID
+
+
+@kernel(inline="always")
 def rebuildable(kind):
     """Whether a warm-start simplex can be re-evaluated for this kind from feature ids alone."""
     return kind == POLYTOPE or kind == POINT
@@ -480,6 +487,7 @@ def descend(pair, tol, dir_in, warm, work):
         v0, v1, v2 = W[0, 0], W[0, 1], W[0, 2]
     vv = v0 * v0 + v1 * v1 + v2 * v2
     zero_tol = tol_abs if tol_abs > 0.0 else 1e-15 * math.sqrt(vv)
+    curved = is_curved(kA) or is_curved(kB)
     while it < max_iter:
         it += 1
         upper = math.sqrt(vv)
@@ -497,20 +505,26 @@ def descend(pair, tol, dir_in, warm, work):
         # The support points are points of the bodies too: their distance |w| is an upper bound,
         # and on curved surfaces |w| - lower shrinks with the square of the direction's error,
         # long before the simplex point does. Stop on it, with them as witness points.
-        ww = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        if ww < upper and ww - lower <= tol_abs + tol_rel * ww:
-            for c in range(3):
-                PA[0, c] = pa[c]
-                PB[0, c] = pb[c]
-                W[0, c] = pa[c] - pb[c]
-            FI[0, 0] = warm[WARM_FEATURE_A]
-            FI[1, 0] = warm[WARM_FEATURE_B]
-            k = 1
-            lam[0] = 1.0
-            v0, v1, v2, vv = w0, w1, w2, ww * ww
-            work[FRESH_ROW, FRESH_COL] = 0.0
-            status = TOUCHING if ww <= tol_abs else SEPARATED
-            break
+        # Between two flat sides (polytopes, boxes, points, segments) the simplex point reaches the closest
+        # points in finitely many steps, and this test ended a descent sooner only where it had started
+        # along the answer (0.1% of JVRC-1's cold pairs, one iteration each); skipped there, it saves 3% to
+        # 4% of a polytope pair's query, bit for bit the same on kuka_link_4's (a square root, and a branch
+        # taken at random: |w| < |v| holds in 27% of the iterations).
+        if curved:
+            ww = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+            if ww < upper and ww - lower <= tol_abs + tol_rel * ww:
+                for c in range(3):
+                    PA[0, c] = pa[c]
+                    PB[0, c] = pb[c]
+                    W[0, c] = pa[c] - pb[c]
+                FI[0, 0] = warm[WARM_FEATURE_A]
+                FI[1, 0] = warm[WARM_FEATURE_B]
+                k = 1
+                lam[0] = 1.0
+                v0, v1, v2, vv = w0, w1, w2, ww * ww
+                work[FRESH_ROW, FRESH_COL] = 0.0
+                status = TOUCHING if ww <= tol_abs else SEPARATED
+                break
         if _is_duplicate(PA, PB, k, pa, pb):
             status = SEPARATED if upper - lower <= STALL_SLACK * upper + tol_abs else STALLED
             break
