@@ -236,8 +236,9 @@ def test_warm_start_along_a_smooth_path_takes_fewer_iterations():
 
 
 def test_the_support_points_gap_is_tested_exactly_on_the_kinds_with_curved_faces():
-    """descend stops on its support points' own gap only where a side is curved (gjk.is_curved), and
-    skips that test between flat sides, whose simplex point reaches the answer in finitely many steps.
+    """descend stops on its support points' own gap where a side is curved (gjk.is_curved) or its
+    tolerance is loose, and skips that test between flat sides at a tight one, whose simplex point
+    reaches the answer in finitely many steps.
     Judged on each kind's own support function, not on is_curved's list: over 2,000 directions a flat
     kind's supports are its few vertices, a curved kind's many points (an STP-BV's core, sharp at its
     points, still has its big spheres' and arcs' supports between them)."""

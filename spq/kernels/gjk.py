@@ -36,6 +36,15 @@ OVERLAPPING = 2
 FAILED = 3
 STATUS_NAMES = ("separated", "touching", "overlapping", "failed")
 
+# The descent's support-points gap test (below in descend) runs where a side is curved, or the tolerance is
+# at least this loose (the searches that only aim a finish: an STP-BV pair's hulls at 1e-3, a
+# superellipsoid's inscribed polytopes at 1e-2 and 5e-2), where a support pair near the closest one passes
+# it before the simplex settles. Between flat sides at a tighter tolerance (a polytope pair's 1e-10, an
+# STP-BV's hull against a polytope at 1e-6) the simplex point reaches the answer in finitely many steps
+# and the test ended a descent sooner only where it had started along the answer (0.1% of JVRC-1's cold
+# pairs, one iteration each); skipped there, it saves 3% to 4% of a polytope pair's query (a square root,
+# and a branch taken at random: |w| < |v| holds in 27% of a separated kuka_link_4 pair's iterations).
+SUPPORT_GAP_REL_TOL = 1e-4
 DEGENERATE_AREA = 1e-24  # |n|^2 / scale^4 below which a triangle is treated as a segment set
 DEGENERATE_VOLUME = 1e-14  # |V| / scale^3 below which a tetrahedron is treated as its faces
 STALL_SLACK = 1e-9  # a stalled search still counts as converged if its gap is within this, relative
@@ -487,7 +496,7 @@ def descend(pair, tol, dir_in, warm, work):
         v0, v1, v2 = W[0, 0], W[0, 1], W[0, 2]
     vv = v0 * v0 + v1 * v1 + v2 * v2
     zero_tol = tol_abs if tol_abs > 0.0 else 1e-15 * math.sqrt(vv)
-    curved = is_curved(kA) or is_curved(kB)
+    gap_test = is_curved(kA) or is_curved(kB) or tol_rel >= SUPPORT_GAP_REL_TOL
     while it < max_iter:
         it += 1
         upper = math.sqrt(vv)
@@ -505,12 +514,8 @@ def descend(pair, tol, dir_in, warm, work):
         # The support points are points of the bodies too: their distance |w| is an upper bound,
         # and on curved surfaces |w| - lower shrinks with the square of the direction's error,
         # long before the simplex point does. Stop on it, with them as witness points.
-        # Between two flat sides (polytopes, boxes, points, segments) the simplex point reaches the closest
-        # points in finitely many steps, and this test ended a descent sooner only where it had started
-        # along the answer (0.1% of JVRC-1's cold pairs, one iteration each); skipped there, it saves 3% to
-        # 4% of a polytope pair's query, bit for bit the same on kuka_link_4's (a square root, and a branch
-        # taken at random: |w| < |v| holds in 27% of the iterations).
-        if curved:
+        # (SUPPORT_GAP_REL_TOL: where it is skipped)
+        if gap_test:
             ww = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
             if ww < upper and ww - lower <= tol_abs + tol_rel * ww:
                 for c in range(3):
