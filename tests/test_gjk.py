@@ -235,7 +235,7 @@ def test_warm_start_along_a_smooth_path_takes_fewer_iterations():
     assert warm.iterations.mean() < cold.iterations.mean()
 
 
-def test_the_support_points_gap_is_tested_exactly_on_the_kinds_with_curved_faces():
+def test_is_curved_names_exactly_the_kinds_with_curved_faces():
     """descend stops on its support points' own gap where a side is curved (gjk.is_curved) or its
     tolerance is loose, and skips that test between flat sides at a tight one, whose simplex point
     reaches the answer in finitely many steps.

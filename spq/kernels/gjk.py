@@ -514,7 +514,7 @@ def descend(pair, tol, dir_in, warm, work):
         # The support points are points of the bodies too: their distance |w| is an upper bound,
         # and on curved surfaces |w| - lower shrinks with the square of the direction's error,
         # long before the simplex point does. Stop on it, with them as witness points.
-        # (SUPPORT_GAP_REL_TOL: where it is skipped)
+        # Skipped between flat sides at a tight tolerance (SUPPORT_GAP_REL_TOL says why).
         if gap_test:
             ww = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
             if ww < upper and ww - lower <= tol_abs + tol_rel * ww:
