@@ -37,7 +37,8 @@ import math
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import SUPERELLIPSOID
-from spq.kernels.superellipsoid_support import F_A, F_B, F_C, F_E1, F_E2, support_value
+from spq.kernels.superellipsoid_support import (F_A, F_B, F_C, F_E1, F_E2, F_GA, F_GB, F_GC, F_HA, F_HB, F_HC, F_IA,
+                                                F_IB, F_IC, F_K, F_P1, F_P2, support_value)
 
 PRIMAL_MAX_EXPONENT = 1.1  # both exponents of both bodies at most this: the primal Newton runs
 PRIMAL_STEPS = 8  # Newton steps before the caller's Newton on the normal takes over
@@ -60,38 +61,40 @@ def _powers(r, p):
     if r <= 0.0:
         return 0.0, 0.0, (1.0 if p == 2.0 else 0.0 if p > 2.0 else math.inf)
     rp = r * r if p == 2.0 else math.pow(r, p)
-    return rp, rp / r, rp / (r * r)
+    inv = 1.0 / r
+    rp1 = rp * inv
+    return rp, rp1, rp1 * inv
 
 
 @kernel(inline="always")  # (the two bodies' chains of powers then overlap)
 def implicit(f, x0, x1, x2, g, H):
     """F(x) of the superellipsoid f at the local point x, its gradient into g (3,) and its Hessian
     into H (3, 3); inf or NaN where they do not exist (a coordinate plane of an exponent above 1, the
-    z axis)."""
-    a, b, c, e1, e2 = f[F_A], f[F_B], f[F_C], f[F_E1], f[F_E2]
-    p1, p2, k = 2.0 / e1, 2.0 / e2, e2 / e1
-    P0, P0m1, P0m2 = _powers(abs(x0) / a, p2)
-    P1, P1m1, P1m2 = _powers(abs(x1) / b, p2)
-    P2, P2m1, P2m2 = _powers(abs(x2) / c, p1)
+    z axis). The shape's constants (superellipsoid_support.pack) leave one division a coordinate."""
+    p1, p2, k = f[F_P1], f[F_P2], f[F_K]
+    P0, P0m1, P0m2 = _powers(abs(x0) * f[F_IA], p2)
+    P1, P1m1, P1m2 = _powers(abs(x1) * f[F_IB], p2)
+    P2, P2m1, P2m2 = _powers(abs(x2) * f[F_IC], p1)
     u = P0 + P1
-    du0 = math.copysign(p2 * P0m1 / a, x0)
-    du1 = math.copysign(p2 * P1m1 / b, x1)
-    d2u0 = p2 * (p2 - 1.0) * P0m2 / (a * a)
-    d2u1 = p2 * (p2 - 1.0) * P1m2 / (b * b)
+    du0 = math.copysign(f[F_GA] * P0m1, x0)
+    du1 = math.copysign(f[F_GB] * P1m1, x1)
+    d2u0 = f[F_HA] * P0m2
+    d2u1 = f[F_HB] * P1m2
     if u > 0.0:
         uk = u if k == 1.0 else math.pow(u, k)  # equal exponents (boxes, ellipsoids) need no power
-        uk1 = uk / u
-        uk2 = uk1 / u
+        iu = 1.0 / u
+        uk1 = uk * iu
+        uk2 = uk1 * iu
     else:
         uk = uk1 = uk2 = math.nan
     g[0] = k * uk1 * du0
     g[1] = k * uk1 * du1
-    g[2] = math.copysign(p1 * P2m1 / c, x2)
+    g[2] = math.copysign(f[F_GC] * P2m1, x2)
     kk = k * (k - 1.0) * uk2
     H[0, 0] = kk * du0 * du0 + k * uk1 * d2u0
     H[0, 1] = H[1, 0] = kk * du0 * du1
     H[1, 1] = kk * du1 * du1 + k * uk1 * d2u1
-    H[2, 2] = p1 * (p1 - 1.0) * P2m2 / (c * c)
+    H[2, 2] = f[F_HC] * P2m2
     H[0, 2] = H[2, 0] = H[1, 2] = H[2, 1] = 0.0
     return uk + P2
 
@@ -103,8 +106,9 @@ def _to_gauge(F, e1, g, H):
     where F's (degree 2/e1, up to 20) is steep: Newton's radial steps land on the surface."""
     beta = 0.5 * e1
     G = math.pow(F, beta)
-    c = beta * G / F
-    d = (beta - 1.0) / F
+    inv = 1.0 / F
+    c = beta * G * inv
+    d = (beta - 1.0) * inv
     for i in range(3):
         for j in range(3):
             H[i, j] = c * (H[i, j] + d * g[i] * g[j])

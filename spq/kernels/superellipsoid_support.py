@@ -14,8 +14,9 @@ factor lies in [0, 1]: no overflow, no trigonometry, and the limits are the form
 - zero direction components (0^0 is never evaluated: a zero ratio gives zero weight).
 
 Layout (kind SUPERELLIPSOID, see kinds.py): fdata = [a, b, c, e1, e2, q1, q2, q1 - 1, q2 - 1,
-1/q1 - 1, 1/q2 - 1] (F_* offsets below; q - 1 = e/(2 - e) and 1/q - 1 = -e/2 are stored exactly,
-not recomputed from a rounded q), then an inscribed polytope's vertices, which the support here
+1/q1 - 1, 1/q2 - 1, then the implicit function's constants: p1 = 2/e1, p2 = 2/e2, e2/e1, 1/a, 1/b, 1/c,
+p2/a, p2/b, p1/c, p2 (p2 - 1)/a^2, p2 (p2 - 1)/b^2, p1 (p1 - 1)/c^2] (F_* offsets below; q - 1 = e/(2 - e)
+and 1/q - 1 = -e/2 are stored exactly, not recomputed from a rounded q), then an inscribed polytope's vertices, which the support here
 does not read (nor idata, that polytope's). Margin 0.
 """
 
@@ -29,7 +30,13 @@ from spq.kernels.jit import kernel
 
 F_A, F_B, F_C, F_E1, F_E2 = 0, 1, 2, 3, 4
 F_Q1, F_Q2, F_Q1M1, F_Q2M1, F_H1, F_H2 = 5, 6, 7, 8, 9, 10
-FDATA_SIZE = 11
+# the implicit function's (spq.kernels.closest_points_newton.implicit): its Newton steps multiply by
+# these rather than divide (a division costs several multiplications' time, and implicit took 20 a side)
+F_P1, F_P2, F_K = 11, 12, 13
+F_IA, F_IB, F_IC = 14, 15, 16
+F_GA, F_GB, F_GC = 17, 18, 19
+F_HA, F_HB, F_HC = 20, 21, 22
+FDATA_SIZE = 23
 
 # rho^q below this is subnormal or near it: rho^(q-1) = rho^q / rho would lose relative precision,
 # so it is taken as exp((q - 1) log rho) instead (dimensionless; rare: needs rho < ~1e-290^(1/q)).
@@ -49,6 +56,11 @@ def pack(a: float, b: float, c: float, e1: float, e2: float) -> np.ndarray:
             f[iq] = 2.0 / (2.0 - e)
             f[iqm1] = e / (2.0 - e)
         f[ih] = -0.5 * e  # 1/q - 1
+    p1, p2 = 2.0 / e1, 2.0 / e2
+    f[F_P1], f[F_P2], f[F_K] = p1, p2, e2 / e1
+    f[F_IA], f[F_IB], f[F_IC] = 1.0 / a, 1.0 / b, 1.0 / c
+    f[F_GA], f[F_GB], f[F_GC] = p2 / a, p2 / b, p1 / c
+    f[F_HA], f[F_HB], f[F_HC] = p2 * (p2 - 1.0) / (a * a), p2 * (p2 - 1.0) / (b * b), p1 * (p1 - 1.0) / (c * c)
     return f
 
 
