@@ -533,6 +533,26 @@ def test_implicit_function_gradient_and_hessian_match_central_differences(params
         np.testing.assert_allclose(H, fd_H, rtol=1e-4, atol=1e-5 * np.abs(fd_H).max())
 
 
+@pytest.mark.parametrize("point", [(1e-310, 0.05, 0.03), (2.2e-48, 1e-49, 0.08), (0.02, -1e-320, -0.06)])
+def test_implicit_gradient_holds_within_rounding_of_a_coordinate_plane(point):
+    """A coordinate far below any length (subnormal, or whose power is): the packed reciprocals would
+    overflow there, so implicit must still give the gradient the formula gives (finite), not inf or NaN."""
+    from spq.kernels.closest_points_newton import implicit
+
+    a, b, c, e1, e2 = 0.07, 0.12, 0.09, 0.3, 0.3  # equal exponents: F = sum |x_i / a_i|^p, p = 2 / e
+    f = spq.Superellipsoid(a, b, c, e1, e2).kernel_data().fdata
+    g, H = np.empty(3), np.empty((3, 3))
+    x = np.array(point)
+    F = implicit(f, *x, g, H)
+    p = 2.0 / e1
+    axes = np.array([a, b, c])
+    expected = p * np.abs(x / axes) ** (p - 1) / axes * np.sign(x)
+    assert F == pytest.approx(implicit_F(x[None], a, b, c, e1, e2)[0], rel=1e-12)
+    assert np.all(np.isfinite(g))
+    # (a subnormal power keeps fewer digits: the tiny entries to the gradient's scale, the others exactly)
+    np.testing.assert_allclose(g, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+
+
 @pytest.mark.parametrize("params", SHAPES)
 def test_inner_polytope_lies_inside_and_hugs_the_surface(params):
     se = spq.Superellipsoid(*params)

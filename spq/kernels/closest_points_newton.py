@@ -45,6 +45,9 @@ PRIMAL_STEPS = 8  # Newton steps before the caller's Newton on the normal takes 
 # The certificate (B's support value) is checked only once a step is this short relative to the
 # bodies' size: before that the points are too far off for it to close.
 CERTIFY_STEP = 1e-2
+# Below this a reciprocal would overflow (or its products read 0 * inf): the quotients are taken as they
+# are, so that a coordinate within rounding of a coordinate plane gives what the divisions give.
+RECIPROCAL_MIN = 1e-300
 PRIMAL_INNER_REL_TOL = 5e-2  # the inscribed polytopes' search that gives the start points
 
 
@@ -61,6 +64,8 @@ def _powers(r, p):
     if r <= 0.0:
         return 0.0, 0.0, (1.0 if p == 2.0 else 0.0 if p > 2.0 else math.inf)
     rp = r * r if p == 2.0 else math.pow(r, p)
+    if r < RECIPROCAL_MIN:
+        return rp, rp / r, rp / (r * r)
     inv = 1.0 / r
     rp1 = rp * inv
     return rp, rp1, rp1 * inv
@@ -82,9 +87,13 @@ def implicit(f, x0, x1, x2, g, H):
     d2u1 = f[F_HB] * P1m2
     if u > 0.0:
         uk = u if k == 1.0 else math.pow(u, k)  # equal exponents (boxes, ellipsoids) need no power
-        iu = 1.0 / u
-        uk1 = uk * iu
-        uk2 = uk1 * iu
+        if u >= RECIPROCAL_MIN:
+            iu = 1.0 / u
+            uk1 = uk * iu
+            uk2 = uk1 * iu
+        else:
+            uk1 = uk / u
+            uk2 = uk1 / u
     else:
         uk = uk1 = uk2 = math.nan
     g[0] = k * uk1 * du0
@@ -106,9 +115,13 @@ def _to_gauge(F, e1, g, H):
     where F's (degree 2/e1, up to 20) is steep: Newton's radial steps land on the surface."""
     beta = 0.5 * e1
     G = math.pow(F, beta)
-    inv = 1.0 / F
-    c = beta * G * inv
-    d = (beta - 1.0) * inv
+    if F >= RECIPROCAL_MIN:
+        inv = 1.0 / F
+        c = beta * G * inv
+        d = (beta - 1.0) * inv
+    else:
+        c = beta * G / F
+        d = (beta - 1.0) / F
     for i in range(3):
         for j in range(3):
             H[i, j] = c * (H[i, j] + d * g[i] * g[j])
