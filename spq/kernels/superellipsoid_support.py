@@ -16,8 +16,8 @@ factor lies in [0, 1]: no overflow, no trigonometry, and the limits are the form
 Layout (kind SUPERELLIPSOID, see kinds.py): fdata = [a, b, c, e1, e2, q1, q2, q1 - 1, q2 - 1,
 1/q1 - 1, 1/q2 - 1, then the implicit function's constants: p1 = 2/e1, p2 = 2/e2, e2/e1, 1/a, 1/b, 1/c,
 p2/a, p2/b, p1/c, p2 (p2 - 1)/a^2, p2 (p2 - 1)/b^2, p1 (p1 - 1)/c^2] (F_* offsets below; q - 1 = e/(2 - e)
-and 1/q - 1 = -e/2 are stored exactly, not recomputed from a rounded q), then an inscribed polytope's vertices, which the support here
-does not read (nor idata, that polytope's). Margin 0.
+and 1/q - 1 = -e/2 are stored exactly, not recomputed from a rounded q), then an inscribed polytope's
+vertices, which the support here does not read (nor idata, that polytope's). Margin 0.
 """
 
 from __future__ import annotations
