@@ -324,7 +324,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--block", type=int, default=BLOCK,
                    help=f"pch, stp, table1: poses per block; each block is timed --repeats times, every engine on it "
-                        f"before the next, its least time kept (default {BLOCK})")
+                        f"before the next, each timed run after an untimed one on the same block, its least time kept "
+                        f"(default {BLOCK})")
     p.add_argument("--engines", nargs="+", help="engine names (default: all that import)")
     p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m), stp suite")
     p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m), stp suite")

@@ -53,7 +53,7 @@ def run(config: Config) -> Output:
              f"({facts['hull_volume']:.6g} m^3, qhull) - 1. queries_per_s: spq.distances STP-PCH (the STP-BV against "
              f"the link's hull) on {cfg.poses} random poses (harness.workloads.poses.random_poses, ±{cfg.translation_range} m), "
              f"default tolerance, every R timed side by side in {cfg.repeats} rounds (blocks of up to {BLOCK:,} poses, each "
-             "block's least time kept: harness.suites.bench.timing.blocked_times). witness_lipschitz: max |Δp| / step of the witness points "
+             "timed run just after an untimed one on the same block, each block's least time kept: harness.suites.bench.timing.blocked_times). witness_lipschitz: max |Δp| / step of the witness points "
              "(m/rad) for STP-PCH on harness.suites.continuity.witness_continuity's parallel_faces trajectory at one step (step_rad), on a "
              f"{cfg.grid}-point grid plus points straddling the {cfg.jumps} largest witness jumps.")
     title = f"STP-BV of {obj}, r = {cfg.r} m: what R trades"

@@ -175,7 +175,8 @@ def run(config: Config) -> Output:
                   f"(seed {config.seed}) in blocks of {config.robot_block}; queries: configurations x pairs, "
                   "us per query: per pair; rows_differing: the pairs' raw result rows not equal bit for bit.")
     notes += (f" Each block timed {config.repeats} times, old and new in turn (their order alternating by block "
-              "and round); a version's time is the sum of its least time on each block. old_over_new > 1: the new "
+              "and round), each timed run just after an untimed one of the same version on the same block; a version's "
+              "time is the sum of its least time on each block. old_over_new > 1: the new "
               "version is faster.")
     out = Output(meta=meta, tables=[Table("ab", f"A/B: {config.old} against {config.new}", table, notes)])
     out.lines = frame_lines(table)

@@ -51,7 +51,8 @@ def run(config: Config) -> Output:
                         **({"workers": config.workers} if config.workers > 1 else {}))
     notes = (f"Two copies of {config.object}, {config.poses} pose pairs with uniformly random rotations and "
              f"translations uniform in ±{config.range} m, seed {config.seed}. Timed in blocks of {config.block} "
-             f"poses: every engine runs a block before any runs the next, {config.repeats} rounds, and an engine's "
+             f"poses: every engine runs a block before any runs the next, {config.repeats} rounds, each timed run just "
+             "after an untimed one of the same engine on the same block (its data in the caches), and an engine's "
              "time is the sum over the blocks of its least time on each; every engine in the same run. per-call: "
              "one Python call per query; batched: one compiled call per block; signed: spq with signed=True "
              "(penetration depth on overlaps; coal always runs with signed distance on). poses: all, or only "

@@ -13,6 +13,15 @@ read 1.27x to 1.67x over four runs of the same code (docs/notes/speed-45.md, sto
   least time on that block. Each block is timed ``repeats`` times, a few milliseconds apart from the
   other jobs' same block, so a slow spell falls on every job alike and a fast one is taken by each
   block separately, not by one job's whole run.
+
+  By default each timed call follows an untimed call of the same job on the same block (``warm``):
+  without it a job found its data (hulls, cube maps, a peer's own structures) evicted by the other
+  jobs' runs of the block, and paid for reloading it, more the more data it has. That was not
+  neutral: on Table I's pairs it slowed coal's and spq's PCH-PCH (a hull and a cube map) and hardly
+  a superellipsoid, and moved CSE-CSE's speed ratio from 0.46 (warm) to 0.51 (interleaved), and spq's
+  JVRC-1 cold sweep against pinocchio's from 2.18x to 1.98x (docs/notes/speed-45.md, stop 120).
+  A user's loop that calls one engine over and over keeps that engine's data in the caches, and
+  that is what the benchmarks measure.
 """
 
 from __future__ import annotations
@@ -59,7 +68,7 @@ def block_bounds(n: int, block: int) -> list[tuple[int, int]]:
 
 
 def blocked_times(jobs: dict, repeats: int, block: int = BLOCK, progress=None, clock=time.perf_counter,
-                  before_round=None, alternate: bool = False) -> dict:
+                  before_round=None, alternate: bool = False, warm: bool = True) -> dict:
     """{key: (seconds, [result of each block])} for jobs {key: (fn, array, ...)}: fn takes the arrays
     (poses, configurations, an output to fill), all of one length, sliced alike along their first axis.
     In each of ``repeats`` rounds, block k of every job runs before block k + 1 of any (a job on
@@ -68,7 +77,10 @@ def blocked_times(jobs: dict, repeats: int, block: int = BLOCK, progress=None, c
     call; clock: the timer (seconds); before_round: an untimed call at the start of each round (a
     scene's reset, so that warm starts carried from block to block start alike in every round);
     alternate: the jobs' order reversed on every other block and round (an A/B of two versions, where
-    the job that runs second on a block may find the caches and predictors as the first left them)."""
+    the job that runs second on a block may find the caches and predictors as the first left them);
+    warm: each timed call preceded by an untimed one of the same job on the same block, so that it
+    finds its own data in the caches, not the other jobs' (turn it off where a call carries state into
+    the next, such as a scene's warm starts, which the untimed call would advance)."""
     if repeats < 1:
         raise ValueError(f"repeats must be at least 1, got {repeats}")
     bounds = {key: block_bounds(len(job[1]), block) for key, job in jobs.items()}
@@ -87,6 +99,8 @@ def blocked_times(jobs: dict, repeats: int, block: int = BLOCK, progress=None, c
                     continue
                 start, stop = bounds[key][k]
                 parts = [a[start:stop] for a in arrays]
+                if warm:
+                    fn(*parts)
                 t0 = clock()
                 out = fn(*parts)
                 least[key][k] = min(least[key][k], clock() - t0)

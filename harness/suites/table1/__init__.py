@@ -115,7 +115,8 @@ def run(config: Config) -> Output:
            f"(r = {config.r} m, R = {config.R} m) and a CSE-BV ({cse_text}). {config.poses} pose pairs: uniformly "
            f"random rotations, translations uniform in ±{config.range} m (seed {config.seed}); spq batched, tolerance "
            f"{DEFAULT_TOL_ABS:g} m + {DEFAULT_TOL_REL:g} relative; timed in blocks of {config.block} poses, every "
-           f"pair and coal on a block before the next, the least of {config.repeats} rounds per block summed. coal "
+           f"pair and coal on a block before the next, each timed run just after an untimed one of the same job on "
+           f"the same block, the least of {config.repeats} rounds per block summed. coal "
            f"PCH-PCH in the "
            f"same run: {coal_qps:,.0f} queries/s."), "",
           "## spq, queries per second (all poses)", "", markdown_table(t1.lower_triangle(table, "queries_per_s")), "",
