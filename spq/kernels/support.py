@@ -99,8 +99,8 @@ def cube_map_size(n_vertices: int, minimum: int, dense: bool = True) -> int:
     cells per vertex, so that large hulls keep short candidate lists. A robot scene takes the sparse
     maps (dense=False): its all-pairs sweep runs through every hull, and the larger pools cost more in
     cache than the shorter lists saved (JVRC-1 cold auto 7% slower); its STP-BVs' embedded hulls
-    take them too, so that a body's PCH and STP-BV still share one hull. A superellipsoid's inner
-    polytope always takes them (Superellipsoid.kernel_data says why)."""
+    take them too, so that a body's PCH and STP-BV still share one hull, and so do its
+    superellipsoids' inner polytopes."""
     def edge(cells_per_vertex):
         return int(np.ceil(np.sqrt(n_vertices * cells_per_vertex / 6.0)))
     dense_edge = min(DENSE_MAX_G, edge(DENSE_CELLS_PER_VERTEX)) if dense else 0

@@ -120,8 +120,7 @@ class Polyhedron(Shape):
     def kernel_data(self, dense: bool = True) -> KernelData:
         """What the kernels see of this hull. dense: the support's cube map with cube_map_size's denser
         cells (a standalone hull, or the hull embedded in a standalone STP-BV); False: the sparse one,
-        which a robot scene's pools and a superellipsoid's inner polytope take
-        (spq.kernels.support.cube_map_size)."""
+        which a robot scene's pools take (spq.kernels.support.cube_map_size)."""
         if self._kernel is None:
             self._kernel = {}
         if dense not in self._kernel:

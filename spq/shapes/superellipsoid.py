@@ -75,7 +75,7 @@ class Superellipsoid(Shape):
         self.e1 = as_exponent(e1, "e1")
         self.e2 = as_exponent(e2, "e2")
         self._core = pack(self.a, self.b, self.c, self.e1, self.e2)  # what the closed-form support reads
-        self._kernel = None
+        self._kernel = {}  # dense -> KernelData
 
     # ---------------------------------------------------------------------------------- data
     @property
@@ -90,14 +90,15 @@ class Superellipsoid(Shape):
 
     def kernel_data(self, dense: bool = True) -> KernelData:
         """fdata: the closed-form parameters, then the inner polytope's vertices; idata: the inner
-        polytope's (see kernels.kinds). The inner polytope's cube map is the sparse one whatever
-        ``dense`` says: the dense one gained 1 to 6%, and on this symmetric polytope it lists tied
-        vertices in another order, which moved witness points (docs/notes/speed-45.md, stop 87)."""
-        if self._kernel is None:
-            inner = self.inner_polytope().kernel_data(dense=False)
+        polytope's (see kernels.kinds), with the dense or the sparse cube map as ``dense`` says
+        (Polyhedron.kernel_data). The dense map's supports run the inner polytopes' search faster
+        (Table I's CSE-CSE 1.03x with each side timed on warm caches, rows bit-identical;
+        docs/notes/speed-45.md, stop 121)."""
+        if dense not in self._kernel:
+            inner = self.inner_polytope().kernel_data(dense=dense)
             fdata = np.concatenate([self._core, inner.fdata])
-            self._kernel = KernelData(kinds.SUPERELLIPSOID, 0.0, fdata, inner.idata)
-        return self._kernel
+            self._kernel[dense] = KernelData(kinds.SUPERELLIPSOID, 0.0, fdata, inner.idata)
+        return self._kernel[dense]
 
     def inner_polytope(self, n: int = INNER_DIRECTIONS) -> Polyhedron:
         """A polytope inside the shape: the hull of its support points along n directions spread
