@@ -49,6 +49,7 @@ CERTIFY_STEP = 1e-2
 # are, so that a coordinate within rounding of a coordinate plane gives what the divisions give.
 RECIPROCAL_MIN = 1e-300
 PRIMAL_INNER_REL_TOL = 5e-2  # the inscribed polytopes' search that gives the start points
+PRIMAL_RESTART_REL_TOL = 1e-4  # that search carried on this far when Newton failed from its first start
 
 
 @kernel(inline="always")

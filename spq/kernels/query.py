@@ -59,7 +59,8 @@ from spq.kernels.gjk import (
 from spq.kernels.coherent_ball import coherent_ball_finish
 from spq.kernels.dispatch import support_local
 from spq.kernels.primitive_pairs import closed_form_kinds, primitive_query
-from spq.kernels.closest_points_newton import PRIMAL_INNER_REL_TOL, closest_points_newton, primal_pair
+from spq.kernels.closest_points_newton import (PRIMAL_INNER_REL_TOL, PRIMAL_RESTART_REL_TOL, closest_points_newton,
+                                               primal_pair)
 from spq.kernels.newton_normal import INNER_REL_TOL, newton_normal, smooth_against_stp, smooth_pair
 from spq.kernels.patch_newton import patch_newton, patch_newton_first, patch_newton_pair
 from spq.kernels.epa import EPA_RESULT, bounds_closed, epa, epa_run, epa_start
@@ -1114,17 +1115,27 @@ def smooth_finish(pair, tol, dir_io, warm, work, out):
     if status != SEPARATED or not (upper > tol_abs):
         return -1 - it
     if primal_pair(kA, fA, kB, fB):
-        # the inscribed polytopes' closest points start Newton on the bodies' own closest points
-        xs, ys = work[13], work[14]  # (the descent's rows past its simplex: Newton's scratch below)
-        _combine(PA, lam, k, xs, 0)
-        _combine(PB, lam, k, ys, 0)
-        ok, steps, up, lo = closest_points_newton(pair, (xs[0], xs[1], xs[2], ys[0], ys[1], ys[2]), tol_abs, tol_rel,
-                                                  PA[0], PB[0], work[13:DESCENT_ROWS], work[PROBE_ROW:PROBE_END],
-                                                  work[EPA_ROW:EPA_ROW + 2])
-        it += steps
-        if ok:
-            _finish_at_points(PA, PB, lam, up, lo, it, mA, mB, tol_abs, dir_io, out)
-            return it
+        for attempt in range(2):
+            if attempt == 1:
+                # the same descent carried on to a tighter tolerance (its simplex kept in warm): a start
+                # nearer the bodies' closest points, which most of the failed Newton runs converge from
+                status, k, v0, v1, v2, vv, lower, more = descend(
+                    inner, (tol_abs, max(tol_rel, PRIMAL_RESTART_REL_TOL), max_iter), dir_io, warm, work)
+                it += more
+                upper = math.sqrt(vv)
+                if status != SEPARATED or not (upper > tol_abs):
+                    return -1 - it
+            # the inscribed polytopes' closest points start Newton on the bodies' own closest points
+            xs, ys = work[13], work[14]  # (the descent's rows past its simplex: Newton's scratch below)
+            _combine(PA, lam, k, xs, 0)
+            _combine(PB, lam, k, ys, 0)
+            ok, steps, up, lo = closest_points_newton(pair, (xs[0], xs[1], xs[2], ys[0], ys[1], ys[2]), tol_abs,
+                                                      tol_rel, PA[0], PB[0], work[13:DESCENT_ROWS],
+                                                      work[PROBE_ROW:PROBE_END], work[EPA_ROW:EPA_ROW + 2])
+            it += steps
+            if ok:
+                _finish_at_points(PA, PB, lam, up, lo, it, mA, mB, tol_abs, dir_io, out)
+                return it
     ok, evaluations, upper, lower, m0, m1, m2 = newton_normal(pair, (-v0 / upper, -v1 / upper, -v2 / upper),
                                                               0.0, tol_abs, tol_rel, PA[0], PB[0],
                                                               work[13:DESCENT_ROWS], warm)
