@@ -1095,7 +1095,8 @@ def gjk_query(pair, tol, dir_io, centres, warm, iwork, work,
 def smooth_finish(pair, tol, dir_io, warm, work, out):
     """Two smooth bodies (see newton_normal.smooth_pair): GJK between their inner polytopes (an
     overlap there is theirs), then Newton's method on the closest points from the polytopes' where
-    neither body is pointy (closest_points_newton.primal_pair), else (or if that fails) Newton's
+    neither body is pointy (closest_points_newton.primal_pair), and once more from the polytopes'
+    search carried on to PRIMAL_RESTART_REL_TOL if that fails, else (or if that fails too) Newton's
     method on the normal from the polytopes' normal. Returns the iterations used (result in out), or
     -1 - iterations when the plain descent has to finish (dir_io then holds the best normal found). The polytopes' simplex is the warm
     start kept in warm (the superellipsoids' own descent has none to keep)."""
