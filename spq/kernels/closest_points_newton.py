@@ -37,6 +37,7 @@ import math
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import SUPERELLIPSOID
+from spq.kernels.lane_powers import powers_in_place
 from spq.kernels.superellipsoid_support import (F_A, F_B, F_C, F_E1, F_E2, F_GA, F_GB, F_GC, F_HA, F_HB, F_HC, F_IA,
                                                 F_IB, F_IC, F_K, F_P1, F_P2, support_value)
 
@@ -64,7 +65,20 @@ def _powers(r, p):
     """(r^p, r^(p-1), r^(p-2)) for r >= 0, p > 1; 0^(p-2) is inf for p < 2."""
     if r <= 0.0:
         return 0.0, 0.0, (1.0 if p == 2.0 else 0.0 if p > 2.0 else math.inf)
-    rp = r * r if p == 2.0 else math.pow(r, p)
+    return _lower_powers(r, r * r if p == 2.0 else math.pow(r, p), p)
+
+
+@kernel(inline="always")
+def _given_powers(r, rp, p):
+    """_powers with r^p given (rp, as lane_powers gives it)."""
+    if r <= 0.0:
+        return 0.0, 0.0, (1.0 if p == 2.0 else 0.0 if p > 2.0 else math.inf)
+    return _lower_powers(r, rp, p)
+
+
+@kernel(inline="always")
+def _lower_powers(r, rp, p):
+    """(r^p, r^(p-1), r^(p-2)) from r > 0 and r^p."""
     if r < RECIPROCAL_MIN:
         return rp, rp / r, rp / (r * r)
     inv = 1.0 / r
@@ -77,10 +91,35 @@ def implicit(f, x0, x1, x2, g, H):
     """F(x) of the superellipsoid f at the local point x, its gradient into g (3,) and its Hessian
     into H (3, 3); inf or NaN where they do not exist (a coordinate plane of an exponent above 1, the
     z axis). The shape's constants (superellipsoid_support.pack) leave one division a coordinate."""
-    p1, p2, k = f[F_P1], f[F_P2], f[F_K]
-    P0, P0m1, P0m2 = _powers(abs(x0) * f[F_IA], p2)
-    P1, P1m1, P1m2 = _powers(abs(x1) * f[F_IB], p2)
-    P2, P2m1, P2m2 = _powers(abs(x2) * f[F_IC], p1)
+    p1, p2 = f[F_P1], f[F_P2]
+    return _implicit_from(f, x0, x1, x2, _powers(abs(x0) * f[F_IA], p2), _powers(abs(x1) * f[F_IB], p2),
+                          _powers(abs(x2) * f[F_IC], p1), g, H)
+
+
+@kernel(inline="always")
+def _lanes_in(f, x0, x1, x2, lanes, at0):
+    """The bases of f's three coordinate powers at x into lanes[at0:at0 + 3] (see _implicit_lanes)."""
+    lanes[at0] = abs(x0) * f[F_IA]
+    lanes[at0 + 1] = abs(x1) * f[F_IB]
+    lanes[at0 + 2] = abs(x2) * f[F_IC]
+
+
+@kernel(inline="always")
+def _implicit_lanes(f, x0, x1, x2, lanes, at0, g, H):
+    """implicit at x from its coordinates' powers, which _lanes_in's bases became in lanes[at0:at0 + 3]."""
+    p1, p2 = f[F_P1], f[F_P2]
+    return _implicit_from(f, x0, x1, x2, _given_powers(abs(x0) * f[F_IA], lanes[at0], p2),
+                          _given_powers(abs(x1) * f[F_IB], lanes[at0 + 1], p2),
+                          _given_powers(abs(x2) * f[F_IC], lanes[at0 + 2], p1), g, H)
+
+
+@kernel(inline="always")
+def _implicit_from(f, x0, x1, x2, c0, c1, c2, g, H):
+    """implicit from the powers (r^p, r^(p-1), r^(p-2)) of the three scaled coordinates."""
+    k = f[F_K]
+    P0, P0m1, P0m2 = c0
+    P1, P1m1, P1m2 = c1
+    P2, P2m1, P2m2 = c2
     u = P0 + P1
     du0 = math.copysign(f[F_GA] * P0m1, x0)
     du1 = math.copysign(f[F_GB] * P1m1, x1)
@@ -256,7 +295,7 @@ def closest_points_newton(pair, start, tol_abs, tol_rel, best_a, best_b, work, m
 
     Returns (converged, steps, upper, lower): on convergence (upper - lower <= tol_abs + tol_rel *
     upper, lower > 0) the witness points on the surfaces are in best_a and best_b (A's frame).
-    work: (9, 4) scratch; mat: (13, 4) scratch for the linear system; step: (2, 4) scratch.
+    work: (9, 4) scratch; mat: (17, 4) scratch for the linear system and the powers; step: (2, 4) scratch.
     """
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     x0, x1, x2, y0, y1, y2 = start
@@ -266,18 +305,30 @@ def closest_points_newton(pair, start, tol_abs, tol_rel, best_a, best_b, work, m
     HA = work[3:6]
     HB = work[6:9]
     size = (fA[F_A] + fA[F_B] + fA[F_C] + fB[F_A] + fB[F_B] + fB[F_C]) / 6.0
+    lanes = mat[13:15].reshape(8)
+    exponents = mat[15:17].reshape(8)
+    exponents[0] = exponents[1] = fA[F_P2]
+    exponents[2] = fA[F_P1]
+    exponents[3] = exponents[4] = fB[F_P2]
+    exponents[5] = fB[F_P1]
+    exponents[6] = exponents[7] = 1.0
     lam = mu = 0.0
     last = math.inf  # the last step's length
     steps = 0
     upper, lower = math.inf, -math.inf
     while steps < PRIMAL_STEPS:
         steps += 1
-        FA = implicit(fA, x0, x1, x2, gA, HA)
         d0, d1, d2 = y0 - t[0], y1 - t[1], y2 - t[2]  # y in B's frame: R^T (y - t)
         yb0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
         yb1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
         yb2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
-        FB = implicit(fB, yb0, yb1, yb2, sup, HB)
+        # the six coordinate powers in one vectorized call (lanes 6 and 7 idle at 1^1)
+        _lanes_in(fA, x0, x1, x2, lanes, 0)
+        _lanes_in(fB, yb0, yb1, yb2, lanes, 3)
+        lanes[6] = lanes[7] = 1.0
+        powers_in_place(lanes, exponents)
+        FA = _implicit_lanes(fA, x0, x1, x2, lanes, 0, gA, HA)
+        FB = _implicit_lanes(fB, yb0, yb1, yb2, lanes, 3, sup, HB)
         if not (FA > 0.0 and FB > 0.0 and FA < math.inf and FB < math.inf):
             return False, steps, upper, lower
         FA = _to_gauge(FA, fA[F_E1], gA, HA)
