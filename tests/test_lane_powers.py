@@ -9,7 +9,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from spq.kernels.lane_powers import powers_in_place
+from numba import njit
+
+from spq.kernels.jit import kernel
+from spq.kernels.lane_powers import lanes_view, powers_in_place
 
 
 def _powers(x, p):
@@ -54,3 +57,21 @@ def test_special_values():
     assert got[6] == 0.0  # 1e-2000 underflows
     assert got[7] == math.inf  # 1e2000 overflows
     assert got[8] == 2.0
+
+
+def _square_rows_in_place(scratch, row):
+    x = lanes_view(scratch, row)
+    p = lanes_view(scratch, row + 2)
+    for i in range(x.shape[0]):
+        p[i] = 2.0
+    powers_in_place(x, p)
+
+
+def test_lanes_view_is_two_rows_of_a_scratch_with_nrt_and_without():
+    for compiled in (njit(_square_rows_in_place), kernel(cache=False)(_square_rows_in_place)):
+        scratch = np.arange(1.0, 41.0).reshape(10, 4)
+        want = scratch.copy()
+        want[3:5] = want[3:5] ** 2
+        want[5:7] = 2.0
+        compiled(scratch, 3)
+        np.testing.assert_allclose(scratch, want, rtol=1e-14)

@@ -37,7 +37,7 @@ import math
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import SUPERELLIPSOID
-from spq.kernels.lane_powers import powers_in_place
+from spq.kernels.lane_powers import lanes_view, powers_in_place
 from spq.kernels.superellipsoid_support import (F_A, F_B, F_C, F_E1, F_E2, F_GA, F_GB, F_GC, F_HA, F_HB, F_HC, F_IA,
                                                 F_IB, F_IC, F_K, F_P1, F_P2, support_value)
 
@@ -305,8 +305,8 @@ def closest_points_newton(pair, start, tol_abs, tol_rel, best_a, best_b, work, m
     HA = work[3:6]
     HB = work[6:9]
     size = (fA[F_A] + fA[F_B] + fA[F_C] + fB[F_A] + fB[F_B] + fB[F_C]) / 6.0
-    lanes = mat[13:15].reshape(8)
-    exponents = mat[15:17].reshape(8)
+    lanes = lanes_view(mat, 13)  # rows 13 to 16 of mat
+    exponents = lanes_view(mat, 15)
     exponents[0] = exponents[1] = fA[F_P2]
     exponents[2] = fA[F_P1]
     exponents[3] = exponents[4] = fB[F_P2]

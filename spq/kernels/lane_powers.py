@@ -24,7 +24,10 @@ import math
 
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
+from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
+from numba.np.arrayobj import populate_array
 
 from spq.kernels.jit import kernel
 
@@ -38,6 +41,29 @@ MIN_NORMAL = 2.2250738585072014e-308
 SUBNORMAL_SCALE = 18014398509481984.0  # 2^54
 UNDERFLOW_Y = -708.0  # below, 2^n has no normal double: the result is taken as 0
 OVERFLOW_Y = 709.0  # above, the result is taken as inf
+
+
+LANES = 8  # powers per call in the kernels' use: two rows of a (n, 4) scratch
+
+
+@intrinsic
+def lanes_view(typingctx, arr, row):
+    """LANES consecutive slots from arr[row, 0] of a C-contiguous 2-d float64 array as a 1-d view (rows
+    row and row + 1 of an (n, 4) scratch; no bounds check: the caller keeps row + 1 < n). Built in place:
+    numba's reshape is a call into its helper library (about 10 ns), and its carray a function that
+    returns a new array, which a kernel without NRT may not call."""
+    view = types.Array(types.float64, 1, "C")
+
+    def codegen(context, builder, signature, args):
+        src = context.make_array(signature.args[0])(context, builder, args[0])
+        data = cgutils.get_item_pointer(context, builder, signature.args[0], src,
+                                        [args[1], context.get_constant(types.intp, 0)], wraparound=False)
+        out = context.make_array(view)(context, builder)
+        itemsize = context.get_constant(types.intp, 8)
+        populate_array(out, data=data, shape=[context.get_constant(types.intp, LANES)], strides=[itemsize],
+                       itemsize=itemsize, meminfo=src.meminfo, parent=src.parent)
+        return impl_ret_borrowed(context, builder, view, out._getvalue())
+    return view(arr, row), codegen
 
 
 @intrinsic
