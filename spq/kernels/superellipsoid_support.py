@@ -42,6 +42,13 @@ FDATA_SIZE = 23
 # so it is taken as exp((q - 1) log rho) instead (dimensionless; rare: needs rho < ~1e-290^(1/q)).
 TINY_POWER = 1e-290
 
+# A direction whose largest component lies in this range is used unscaled: diag(a, b, c) |d| and the
+# norms built from it stay far from overflow and underflow for any admissible semi-axes, so the
+# ratios the powers take need no division by the component first (that division sat on the
+# support's critical path, ahead of its chain of logarithms and exponentials). Outside it the
+# direction is scaled to a largest component of 1 first.
+RAW_LO, RAW_HI = 1e-150, 1e150
+
 
 def pack(a: float, b: float, c: float, e1: float, e2: float) -> np.ndarray:
     """fdata (FDATA_SIZE,) float64 for semi-axes a, b, c (m) and exponents e1, e2 in (0, 2].
@@ -80,26 +87,46 @@ def _minor_powers(rho, q, qm1):
 
 @kernel(inline="always")
 def _octant_parts(f, u0, u1, u2):
-    """For u >= 0 with max(u) = max of the scaled semi-axes times 1 (see superellipsoid_support):
-    the inner norm's gradient (w0, w1), the outer norm's gradient (wm, wz), the inner norm m and
-    the outer norm h, i.e. h(u) = ||(m, u2)||_q1 with m = ||(u0, u1)||_q2."""
+    """For u = diag(a, b, c) |d| >= 0 at any scale (see _scaled_direction): the inner norm's gradient
+    (w0, w1), the outer norm's gradient (wm, wz), the inner norm m and the outer norm h, i.e.
+    h(u) = ||(m, u2)||_q1 with m = ||(u0, u1)||_q2, then the ratios of each norm to its entries
+    (m / u0, m / u1, h / m, h / u2; inf for a zero entry). The gradients and ratios depend on u's
+    direction only; m and h are at u's scale.
+
+    The ratios are products of the factors the norms are built from, not quotients: the derivative
+    (superellipsoid_support_jacobian) then waits for no division, and a larger entry's ratio is
+    exactly the factor its norm took, so that where a norm reduces to its larger entry the
+    derivative's terms cancel exactly."""
     # inner norm m = ||(u0, u1)||_q2 = mx S^(1/q2), S = 1 + rho^q2, with gradient (w0, w1) in [0, 1]^2
     mx = max(u0, u1)
     m = 0.0
+    r0 = r1 = rm = rz = 1.0
     if mx > 0.0:
         if u0 >= u1:
-            p, pm1 = _minor_powers(u1 / mx, f[F_Q2], f[F_Q2M1])
+            rho = u1 / mx
+            p, pm1 = _minor_powers(rho, f[F_Q2], f[F_Q2M1])
             w0, w1 = 1.0, pm1
         else:
-            p, pm1 = _minor_powers(u0 / mx, f[F_Q2], f[F_Q2M1])
+            rho = u0 / mx
+            p, pm1 = _minor_powers(rho, f[F_Q2], f[F_Q2M1])
             w0, w1 = pm1, 1.0
-        ls = math.log1p(p)  # log S, in [0, log 2]
+        # log S, in [0, log 2]: log of the rounded S, not log1p(p), which is 9 ns slower on the chain's
+        # critical path; its absolute error (about 1e-16) is what the powers of S below see, and m uses
+        # the same rounded S
+        s_ = 1.0 + p
+        ls = math.log(s_)
         g = 1.0
         if p > 0.0:
             g = math.exp(f[F_H2] * ls)  # S^(1/q2 - 1)
             w0 *= g
             w1 *= g
-        m = mx * g * (1.0 + p)  # S^(1/q2) = S^(1/q2 - 1) S
+        m = mx * g * s_  # S^(1/q2) = S^(1/q2 - 1) S
+        r_major = g * s_
+        r_minor = r_major * (1.0 / rho)  # rho's reciprocal is taken beside the powers
+        if u0 >= u1:
+            r0, r1 = r_major, r_minor
+        else:
+            r0, r1 = r_minor, r_major
         # outer norm h = ||(m, u2)||_q1: the ratio of its entries in the log domain, where
         # log(u2 / m) = log(u2 / mx) - log(S) / q2 needs no power of S (and no wait for it); the
         # ratio to the q1 - 1 is the ratio to the q1 over the ratio (u2 / m, m by then at hand):
@@ -111,23 +138,39 @@ def _octant_parts(f, u0, u1, u2):
             elif lr < 0.0:
                 p = math.exp(f[F_Q1] * lr)
                 wm = 1.0
-                wz = p * (m / u2) if p >= TINY_POWER else math.exp(f[F_Q1M1] * lr)
+                rz = m / u2
+                wz = p * rz if p >= TINY_POWER else math.exp(f[F_Q1M1] * lr)
             else:
                 p = math.exp(-f[F_Q1] * lr)
                 wz = 1.0
-                wm = p * (u2 / m) if p >= TINY_POWER else math.exp(-f[F_Q1M1] * lr)
+                rm = u2 / m
+                wm = p * rm if p >= TINY_POWER else math.exp(-f[F_Q1M1] * lr)
         else:
             p, wm, wz = 0.0, 1.0, 0.0
+            rz = math.inf
     else:
         p, wm, wz = 0.0, 0.0, 1.0
         w0 = w1 = 0.0
+        r0 = r1 = rm = math.inf
     G = 1.0
     if p > 0.0:
-        G = math.exp(f[F_H1] * math.log1p(p))  # T^(1/q1 - 1), T = 1 + ratio^q1
+        G = math.exp(f[F_H1] * math.log(1.0 + p))  # T^(1/q1 - 1), T = 1 + ratio^q1 (log, not log1p: see ls)
         wm *= G
         wz *= G
-    h = max(m, u2) * G * (1.0 + p)  # the larger entry times T^(1/q1)
-    return w0, w1, wm, wz, m, h
+    factor = G * (1.0 + p)  # T^(1/q1)
+    h = max(m, u2) * factor  # the larger entry times T^(1/q1)
+    return w0, w1, wm, wz, m, h, r0, r1, rm * factor, rz * factor
+
+
+@kernel(inline="always")
+def _scaled_direction(f, a0, a1, a2, vmax):
+    """(u0, u1, u2, t, 1 / t) for the absolute direction components a (largest vmax > 0):
+    u = diag(a, b, c) a / t, where t brings u's norms back to the direction's own scale: 1 for a
+    direction used as it is (see RAW_LO), vmax for one scaled first."""
+    if RAW_LO < vmax < RAW_HI:
+        return f[F_A] * a0, f[F_B] * a1, f[F_C] * a2, 1.0, 1.0
+    inv = 1.0 / vmax
+    return f[F_A] * (a0 * inv), f[F_B] * (a1 * inv), f[F_C] * (a2 * inv), vmax, inv
 
 
 @kernel
@@ -149,15 +192,12 @@ def support_point(f, d0, d1, d2):
         if vmax == 0.0:
             return 0.0, 0.0, f[F_C]
         return math.nan, math.nan, math.nan
-    inv = 1.0 / vmax  # scale first: no overflow in u for any finite direction
-    u0 = f[F_A] * (a0 * inv)
-    u1 = f[F_B] * (a1 * inv)
-    u2 = f[F_C] * (a2 * inv)
+    u0, u1, u2, _, _ = _scaled_direction(f, a0, a1, a2, vmax)
     if f[F_E1] == 1.0 and f[F_E2] == 1.0:  # ellipsoid: q = 2, s = diag(a, b, c) u / |u|
         k = 1.0 / math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
         return (math.copysign(f[F_A] * u0 * k, d0), math.copysign(f[F_B] * u1 * k, d1),
                 math.copysign(f[F_C] * u2 * k, d2))
-    w0, w1, wm, wz, _, _ = _octant_parts(f, u0, u1, u2)
+    w0, w1, wm, wz, _, _, _, _, _, _ = _octant_parts(f, u0, u1, u2)
     return math.copysign(f[F_A] * w0 * wm, d0), math.copysign(f[F_B] * w1 * wm, d1), math.copysign(f[F_C] * wz, d2)
 
 
@@ -167,21 +207,19 @@ def support_value(f, d0, d1, d2):
     nonzero (d0, d1, d2), at the direction's own scale: the dual norm h(u) of _octant_parts, without
     the support point's weights (a certificate's lower bound needs the value alone)."""
     a0, a1, a2 = abs(d0), abs(d1), abs(d2)
-    vmax = max(a0, a1, a2)
-    u0 = f[F_A] * (a0 / vmax)
-    u1 = f[F_B] * (a1 / vmax)
-    u2 = f[F_C] * (a2 / vmax)
+    u0, u1, u2, t, _ = _scaled_direction(f, a0, a1, a2, max(a0, a1, a2))
     if f[F_E1] == 1.0 and f[F_E2] == 1.0:
-        return vmax * math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-    return vmax * _octant_parts(f, u0, u1, u2)[5]
+        return t * math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    return t * _octant_parts(f, u0, u1, u2)[5]
 
 
 @kernel(inline="always")
-def _power_over_ratio(w, r, q):
-    """r^(q - 2) = w / r for w = r^(q - 1), a ratio 0 <= r <= 1 and q in (1, inf); at r = 0 its
-    limit: inf for q < 2 (a flat point: the support point moves infinitely fast)."""
-    if r > 0.0:
-        return w / r
+def _power_over_ratio(value, u, q):
+    """r^(q - 2) for the ratio r = u / N in [0, 1] of an entry u to its norm N: ``value`` (the caller's
+    r^(q - 1) times N / u) where u > 0, q in (1, inf); at u = 0 its limit: inf for q < 2 (a flat
+    point: the support point moves infinitely fast)."""
+    if u > 0.0:
+        return value
     if q > 2.0:
         return 0.0
     return 1.0 if q == 2.0 else math.inf
@@ -204,37 +242,37 @@ def superellipsoid_support_jacobian(f, d0, d1, d2, out, jac):
     vmax = max(a0, a1, a2)
     if not (vmax > 0.0) or not (max(a0, a1) > 0.0):
         return False
-    inv = 1.0 / vmax
-    u0 = f[F_A] * (a0 * inv)
-    u1 = f[F_B] * (a1 * inv)
-    u2 = f[F_C] * (a2 * inv)
-    w0, w1, wm, wz, m, h = _octant_parts(f, u0, u1, u2)
+    u0, u1, u2, t, it = _scaled_direction(f, a0, a1, a2, vmax)
+    w0, w1, wm, wz, m, h, r0, r1, rm, rz = _octant_parts(f, u0, u1, u2)
     out[0] = math.copysign(f[F_A] * w0 * wm, d0)
     out[1] = math.copysign(f[F_B] * w1 * wm, d1)
     out[2] = math.copysign(f[F_C] * wz, d2)
     q1, q2 = f[F_Q1], f[F_Q2]
-    k2 = f[F_Q2M1] / m
-    c0 = _power_over_ratio(w0, u0 / m, q2)
-    c1 = _power_over_ratio(w1, u1 / m, q2)
-    k1 = f[F_Q1M1] / h
-    cm = _power_over_ratio(wm, m / h, q1)
-    cz = _power_over_ratio(wz, u2 / h, q1)
+    # r_i^(q-2) = r_i^(q-1) / r_i with r_i = u_i / N, N the norm, from _octant_parts' ratios N / u_i:
+    # two divisions side by side follow the powers, where six in a row did (the Hessian's 1/N at
+    # the direction's own scale, where it is of degree -1)
+    c0 = _power_over_ratio(w0 * r0, u0, q2)
+    c1 = _power_over_ratio(w1 * r1, u1, q2)
+    cm = _power_over_ratio(wm * rm, m, q1)
+    cz = _power_over_ratio(wz * rz, u2, q1)
     if not (c0 < math.inf and c1 < math.inf and cz < math.inf):
         return False
+    k2 = f[F_Q2M1] * it / m
+    k1 = f[F_Q1M1] * it / h
     nmm = k1 * (cm - wm * wm)
     nmz = -k1 * wm * wz
     nzz = k1 * (cz - wz * wz)
     h00 = nmm * w0 * w0 + wm * k2 * (c0 - w0 * w0)
     h01 = nmm * w0 * w1 - wm * k2 * w0 * w1
     h11 = nmm * w1 * w1 + wm * k2 * (c1 - w1 * w1)
-    # back from the scaled octant: u = diag(a, b, c) |d| / vmax, and the Hessian is of degree -1
+    # back from the octant: u = diag(a, b, c) |d| (over t), and the Hessian is of degree -1
     s0 = math.copysign(f[F_A], d0)
     s1 = math.copysign(f[F_B], d1)
     s2 = math.copysign(f[F_C], d2)
-    jac[0, 0] = s0 * s0 * h00 * inv
-    jac[0, 1] = jac[1, 0] = s0 * s1 * h01 * inv
-    jac[1, 1] = s1 * s1 * h11 * inv
-    jac[0, 2] = jac[2, 0] = s0 * s2 * nmz * w0 * inv
-    jac[1, 2] = jac[2, 1] = s1 * s2 * nmz * w1 * inv
-    jac[2, 2] = s2 * s2 * nzz * inv
+    jac[0, 0] = s0 * s0 * h00
+    jac[0, 1] = jac[1, 0] = s0 * s1 * h01
+    jac[1, 1] = s1 * s1 * h11
+    jac[0, 2] = jac[2, 0] = s0 * s2 * nmz * w0
+    jac[1, 2] = jac[2, 1] = s1 * s2 * nmz * w1
+    jac[2, 2] = s2 * s2 * nzz
     return True
