@@ -86,7 +86,7 @@ def _lower_powers(r, rp, p):
     return rp, rp1, rp1 * inv
 
 
-@kernel(inline="always")  # (the two bodies' chains of powers then overlap)
+@kernel(inline="always")
 def implicit(f, x0, x1, x2, g, H):
     """F(x) of the superellipsoid f at the local point x, its gradient into g (3,) and its Hessian
     into H (3, 3); inf or NaN where they do not exist (a coordinate plane of an exponent above 1, the
