@@ -225,7 +225,7 @@ def _power_over_ratio(value, u, q):
     return 1.0 if q == 2.0 else math.inf
 
 
-@kernel
+@kernel(inline="always")  # into Newton on the normal's evaluation, beside the other side's support
 def superellipsoid_support_jacobian(f, d0, d1, d2, out, jac):
     """Support point along (d0, d1, d2) into out[0:3] and its derivative with respect to the
     direction into jac (3, 3), jac[i, j] = d out_i / d d_j, at the direction's own scale (unit
