@@ -162,6 +162,19 @@ def test_support_ignores_the_direction_length_and_a_zero_direction_gives_the_pol
     np.testing.assert_array_equal(se.support([0.0, 0.0, 0.0]), [0.0, 0.0, 0.1])
 
 
+@pytest.mark.parametrize("k", [1e-290, 1e-150, 1e150, 1e290])
+def test_support_of_extreme_semi_axes_is_the_scaled_support_at_any_direction_length(k):
+    """Semi-axes k times a reference's (k from 1e-290 to 1e290): the support point is k times the
+    reference's, for directions from 1e-100 to 1e100 long (the kernel uses a direction unscaled only
+    where the products stay far from overflow and underflow)."""
+    se = spq.Superellipsoid(0.3, 0.2, 0.1, 0.4, 1.3)
+    big = spq.Superellipsoid(0.3 * k, 0.2 * k, 0.1 * k, 0.4, 1.3)
+    v = np.random.default_rng(6).normal(size=(200, 3))
+    s = se.support(v)
+    for scale in (1e-100, 1.0, 1e100):
+        np.testing.assert_allclose(big.support(v * scale) / k, s, rtol=0, atol=1e-14)
+
+
 def test_ellipsoid_support_matches_the_closed_form_and_the_general_formula_near_e_one():
     a, b, c = 0.3, 0.2, 0.1
     v = np.random.default_rng(6).normal(size=(2000, 3))

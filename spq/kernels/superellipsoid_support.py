@@ -42,11 +42,11 @@ FDATA_SIZE = 23
 # so it is taken as exp((q - 1) log rho) instead (dimensionless; rare: needs rho < ~1e-290^(1/q)).
 TINY_POWER = 1e-290
 
-# A direction whose largest component lies in this range is used unscaled: diag(a, b, c) |d| and the
-# norms built from it stay far from overflow and underflow for any admissible semi-axes, so the
-# ratios the powers take need no division by the component first (that division sat on the
-# support's critical path, ahead of its chain of logarithms and exponentials). Outside it the
-# direction is scaled to a largest component of 1 first.
+# A direction is used unscaled where the largest entry of diag(a, b, c) |d| lies in this range: the
+# norms built from it (at most 4 times that entry) stay far from overflow and underflow, so the
+# ratios the powers take need no division by the direction's largest component first (that division
+# sat on the support's critical path, ahead of its chain of logarithms and exponentials). Elsewhere
+# (semi-axes or directions of extreme size) the direction is scaled to a largest component of 1 first.
 RAW_LO, RAW_HI = 1e-150, 1e150
 
 
@@ -67,8 +67,16 @@ def pack(a: float, b: float, c: float, e1: float, e2: float) -> np.ndarray:
     f[F_P1], f[F_P2], f[F_K] = p1, p2, e2 / e1
     f[F_IA], f[F_IB], f[F_IC] = 1.0 / a, 1.0 / b, 1.0 / c
     f[F_GA], f[F_GB], f[F_GC] = p2 / a, p2 / b, p1 / c
-    f[F_HA], f[F_HB], f[F_HC] = p2 * (p2 - 1.0) / (a * a), p2 * (p2 - 1.0) / (b * b), p1 * (p1 - 1.0) / (c * c)
+    f[F_HA], f[F_HB], f[F_HC] = _over_square(p2 * (p2 - 1.0), a), _over_square(p2 * (p2 - 1.0), b), \
+        _over_square(p1 * (p1 - 1.0), c)
     return f
+
+
+def _over_square(x: float, a: float) -> float:
+    """x / a^2 for a > 0; where a^2 underflows to 0 (a below about 1e-154) x / a / a, which overflows to
+    inf rather than raising (a Python float division by zero raises)."""
+    aa = a * a
+    return x / aa if aa > 0.0 else x / a / a
 
 
 @kernel(inline="always")
@@ -167,8 +175,9 @@ def _scaled_direction(f, a0, a1, a2, vmax):
     """(u0, u1, u2, t, 1 / t) for the absolute direction components a (largest vmax > 0):
     u = diag(a, b, c) a / t, where t brings u's norms back to the direction's own scale: 1 for a
     direction used as it is (see RAW_LO), vmax for one scaled first."""
-    if RAW_LO < vmax < RAW_HI:
-        return f[F_A] * a0, f[F_B] * a1, f[F_C] * a2, 1.0, 1.0
+    u0, u1, u2 = f[F_A] * a0, f[F_B] * a1, f[F_C] * a2
+    if RAW_LO < max(u0, u1, u2) < RAW_HI:
+        return u0, u1, u2, 1.0, 1.0
     inv = 1.0 / vmax
     return f[F_A] * (a0 * inv), f[F_B] * (a1 * inv), f[F_C] * (a2 * inv), vmax, inv
 
