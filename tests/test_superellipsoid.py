@@ -173,6 +173,10 @@ def test_support_of_extreme_semi_axes_is_the_scaled_support_at_any_direction_len
     s = se.support(v)
     for scale in (1e-100, 1.0, 1e100):
         np.testing.assert_allclose(big.support(v * scale) / k, s, rtol=0, atol=1e-14)
+    # its volume k^3 times the reference's where representable (0 or inf beyond), not an error
+    with np.errstate(over="ignore", under="ignore"):
+        expected = float(se.volume() * np.float64(k) ** 3)
+    assert big.volume() == pytest.approx(expected, rel=1e-12) or (expected in (0.0, math.inf) and big.volume() == expected)
 
 
 def test_ellipsoid_support_matches_the_closed_form_and_the_general_formula_near_e_one():

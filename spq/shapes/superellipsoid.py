@@ -18,6 +18,7 @@ max G repairs any violation left (G is homogeneous of degree 1 in the point).
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,7 @@ REPAIR_SLACK = 1e-13  # relative inflation added to the repair scale so rounding
 FIT_MAX_F = 1.0 + 1e-12  # what the fit guarantees for every input point: F(R^T (x - t)) <= FIT_MAX_F
 POSE_SHIFT_BOUND = 0.25  # fit: max centre shift per axis, in units of the mean MVEE semi-axis
 POSE_TURN_BOUND = 0.5  # fit: max rotation-vector component of the frame refinement (rad)
+LOG_FLOAT_MAX = math.log(sys.float_info.max)  # the largest log a float's exp can return
 AXIS_RANGE = (1e-2, 1e2)  # fit: semi-axes searched within these multiples of the MVEE's smallest / largest
 INNER_DIRECTIONS = 200  # support points spanning the inner polytope, GJK's first phase between two of them
 _NO_IDATA = np.zeros(1, dtype=kinds.IDATA_DTYPE)  # the closed-form support reads no integer data
@@ -135,7 +137,8 @@ class Superellipsoid(Shape):
     # ---------------------------------------------------------------------------------- accessors
     def volume(self) -> float:
         """Volume (m^3): 2 abc e1 e2 B(e1/2 + 1, e1) B(e2/2, e2/2)."""
-        return math.exp(_log_volume(self.a, self.b, self.c, self.e1, self.e2))
+        log_v = _log_volume(self.a, self.b, self.c, self.e1, self.e2)
+        return math.exp(log_v) if log_v < LOG_FLOAT_MAX else math.inf  # math.exp raises beyond range
 
     def inside(self, points) -> np.ndarray:
         """F at (n, 3) local points (m): <= 1 inside or on the surface, > 1 outside. Returns (n,)."""
@@ -254,7 +257,12 @@ class FitResult:
 # closed forms
 # ------------------------------------------------------------------------------------------
 def _log_volume(a, b, c, e1, e2):
-    return (math.log(2.0 * a * b * c * e1 * e2) + betaln(0.5 * e1 + 1.0, e1) + betaln(0.5 * e2, 0.5 * e2))
+    scale = 2.0 * a * b * c * e1 * e2
+    if not (0.0 < scale < math.inf):  # semi-axes whose product underflows or overflows: a sum of logs
+        scale_log = math.log(2.0 * e1 * e2) + math.log(a) + math.log(b) + math.log(c)
+    else:
+        scale_log = math.log(scale)
+    return scale_log + betaln(0.5 * e1 + 1.0, e1) + betaln(0.5 * e2, 0.5 * e2)
 
 
 def _d_log_volume_de(e1, e2):
