@@ -62,6 +62,16 @@ def _suite(name: str, **values):
     return command
 
 
+def cmd_profile(args) -> int:
+    from harness.suites.profile.sampling import ProfilerUnavailable
+
+    try:
+        return _suite("profile")(args)
+    except ProfilerUnavailable as exc:
+        print(f"spq profile: cannot profile here: {exc}", file=sys.stderr)
+        return 2
+
+
 def cmd_bench(args) -> int:
     suite = {"pch": "bench", "stp": "bench", "table1": "table1", "robot": "robot", "robots": "robots", "scaling": "scaling",
              "control": "control"}[args.suite]
@@ -522,6 +532,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     _spread_arguments(p, "task of cases")
     p.set_defaults(func=_suite("fuzz", queries=lambda a: None if a.queries is None else int(a.queries)))
+
+    p = sub.add_parser("profile", help="where a bench job's time goes by compiled kernel: the job in a loop under "
+                                       "Linux perf, numba's kernels named (needs perf and readelf)")
+    p.add_argument("pair", nargs="?", default="STP-STP", help="two of PCH, STP, CSE joined by '-' (default STP-STP)")
+    p.add_argument("--mode", choices=["batched", "per-call", "plain"], default="batched",
+                   help="batched: Pair.distances, cold (default); per-call: Pair.cold_distance in a loop; plain: "
+                        "spq.distance in a loop")
+    p.add_argument("--unsigned", dest="signed", action="store_false", help="unsigned queries (default: signed)")
+    p.add_argument("--overlaps", action="store_true", help="the overlapping poses alone")
+    p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
+    p.add_argument("--poses", type=int, default=20000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--range", type=float, default=0.3, help="translation range (m), uniform in ±range")
+    p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m)")
+    p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m)")
+    p.add_argument("--cse", type=_cse, default=CSE_FIT, help="the CSE-BV of CSE pairs, as bench table1's --cse")
+    p.add_argument("--robot", default=None, help="a robot's cold all-pairs sweep instead of a pair (e.g. jvrc1)")
+    p.add_argument("--policy", default="auto", help="the robot scene's policy (default auto)")
+    p.add_argument("--configs", type=int, default=1000, help="the robot's random configurations (default 1000)")
+    p.add_argument("--seconds", type=float, default=10.0, help="time sampled (default 10 s)")
+    p.add_argument("--frequency", type=int, default=4999, help="samples a second (default 4999)")
+    p.add_argument("--top", type=int, default=25, help="rows of the functions' and hot instructions' tables (default 25)")
+    p.add_argument("--out", default=None, help="folder for the tables (default: print only)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_profile)
 
     p = sub.add_parser("srdf", help="sample a robot's collision pairs as MoveIt's setup assistant does; write an SRDF")
     p.add_argument("urdf", help="URDF file, or a robot of datasets/robots.py by name (jvrc1 uses its convex hulls)")
