@@ -375,7 +375,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("new", nargs="?", default="working-tree",
                    help="git revision of the new version (default: the working tree's files as they are)")
     p.add_argument("--pairs", nargs="*", default=["PCH-PCH", "STP-PCH", "STP-STP"],
-                   help="pair types (default: PCH-PCH STP-PCH STP-STP; none, with --robot: the robot alone)")
+                   help="pair types: PCH-PCH STP-PCH STP-STP CSE-PCH CSE-STP CSE-CSE (default: the first three; none, "
+                        "with --robot: the robot alone)")
+    p.add_argument("--cse", type=_cse, default=CSE_FIT, help="the CSE-BV of CSE pairs, as bench table1's --cse")
     p.add_argument("--object", default="kuka_link_4", help="dataset name or mesh path (default: kuka_link_4)")
     p.add_argument("--poses", type=int, default=20000)
     p.add_argument("--seed", type=int, default=0)

@@ -73,7 +73,9 @@ def test_blocked_times_alternates_which_version_runs_first():
 
 def test_the_suite_refuses_unknown_pairs_and_empty_sizes():
     with pytest.raises(ValueError, match="pairs must be some of"):
-        ab.run(ab.Config(pairs=["CSE-CSE"]))
+        ab.run(ab.Config(pairs=["CSE-BOX"]))
+    with pytest.raises(ValueError, match="five numbers"):
+        ab.run(ab.Config(pairs=["CSE-CSE"], cse="0.1,0.1"))
     with pytest.raises(ValueError, match="repeats must be at least 1"):
         ab.run(ab.Config(repeats=0))
 
@@ -149,3 +151,31 @@ def test_the_suite_refuses_a_bad_robot_set_up_before_copying_anything():
         ab.run(ab.Config(robot="jvrc1", configs=0))
     with pytest.raises(ValueError, match="none only with a robot"):
         ab.run(ab.Config(pairs=[]))
+
+
+def test_outside_bounds_counts_rows_where_the_two_versions_cannot_both_be_right():
+    rows = np.zeros((4, 14))
+    rows[:, 0], rows[:, ab.LOWER_COLUMN], rows[:, ab.UPPER_COLUMN] = 1.0, 1.0 - 1e-9, 1.0 + 1e-9
+    other = rows.copy()
+    other[1, 0] = 1.0 + 5e-10  # moved, but inside the first version's bounds, and they inside its own
+    other[2, 0], other[2, ab.LOWER_COLUMN], other[2, ab.UPPER_COLUMN] = 1.1, 1.1, 1.1  # beyond them
+    other[3, ab.LOWER_COLUMN] = other[3, ab.UPPER_COLUMN] = 1.0 + 5e-9  # its bounds exclude the first's distance
+    assert ab.outside_bounds(rows, rows) == 0
+    assert ab.outside_bounds(rows, other) == 2 and ab.outside_bounds(other, rows) == 2
+
+
+def test_cse_pairs_are_placed_as_table1_places_them():
+    import spq
+    from datasets import load_object
+
+    link = load_object("kuka_link_4")
+    pairs = ab._pairs(spq, "kuka_link_4", ["CSE-STP", "CSE-CSE"], False, 0.005, 2.0, "fit")
+    cse, offset = spq.Superellipsoid.fit(link.vertices)
+    pair, offset_a, offset_b = pairs["CSE-STP"]
+    assert isinstance(pair.A, spq.Superellipsoid) and isinstance(pair.B, spq.STPBV)
+    assert np.array_equal(offset_a, offset) and np.array_equal(offset_b, np.eye(4))
+    assert (pair.A.a, pair.A.e1) == (cse.a, cse.e1)
+    pair, offset_a, offset_b = ab._pairs(spq, "kuka_link_4", ["CSE-CSE"], True, 0.005, 2.0, "0.07,0.12,0.09,0.3,0.3")["CSE-CSE"]
+    centre = 0.5 * (link.vertices.min(axis=0) + link.vertices.max(axis=0))
+    assert np.allclose(offset_a[:3, 3], centre) and np.array_equal(offset_a, offset_b)
+    assert (pair.A.a, pair.A.b, pair.A.c, pair.A.e1, pair.A.e2) == (0.07, 0.12, 0.09, 0.3, 0.3) and pair.signed

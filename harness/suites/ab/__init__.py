@@ -20,14 +20,16 @@ import pandas as pd
 from harness.suites import Output, Table, frame_lines
 from harness.suites.bench.timing import BLOCK, blocked_times
 
-PAIR_TYPES = ("PCH-PCH", "STP-PCH", "STP-STP")
+PAIR_TYPES = ("PCH-PCH", "STP-PCH", "STP-STP", "CSE-PCH", "CSE-STP", "CSE-CSE")
+DEFAULT_PAIRS = PAIR_TYPES[:3]
+BOUNDS_SLACK = 1e-10  # m, and relative: how far one version's distance may lie outside the other's certified bounds
 
 
 @dataclass
 class Config:
     old: str = "HEAD"  # git revision, or "working-tree"
     new: str = "working-tree"
-    pairs: list[str] = field(default_factory=lambda: list(PAIR_TYPES))
+    pairs: list[str] = field(default_factory=lambda: list(DEFAULT_PAIRS))
     object: str = "kuka_link_4"  # dataset name or mesh path
     poses: int = 20000
     seed: int = 0
@@ -38,6 +40,7 @@ class Config:
     signed: bool = True
     r: float = 0.005  # m: STP-BV small radius
     R: float = 2.0  # m: STP-BV big radius
+    cse: str = "fit"  # the CSE-BV of the CSE pairs, as spq bench table1's --cse (harness.suites.table1.cse_spec)
     repo: str = "."  # the git checkout the revisions are read from
     robot: str | None = None  # a robot of datasets.robots: its cold all-pairs sweep, per policy
     policies: list[str] = field(default_factory=lambda: ["pch", "auto"])  # the robot's scene policies
@@ -49,6 +52,9 @@ class Config:
 def _check(config: Config) -> None:
     from spq.scene import SCENE_POLICIES
 
+    from harness.suites.table1 import cse_spec
+
+    cse_spec(config.cse)  # its ValueError names the bad value
     unknown = [p for p in config.pairs if p not in PAIR_TYPES]
     if unknown or not (config.pairs or config.robot):
         raise ValueError(f"pairs must be some of {list(PAIR_TYPES)} (none only with a robot); got {config.pairs}")
@@ -73,6 +79,7 @@ def rows_differing(a: np.ndarray, b: np.ndarray) -> int:
 
 
 STATUS_COLUMN = 13  # result_rows' column of the status code
+LOWER_COLUMN, UPPER_COLUMN = 10, 11  # its columns of the certified bounds
 
 
 def result_rows(batch) -> np.ndarray:
@@ -82,14 +89,39 @@ def result_rows(batch) -> np.ndarray:
                             batch.upper_bound, batch.iterations, batch.status_code]).astype(np.float64)
 
 
-def _pairs(package, object_name: str, kinds: list[str], signed: bool, r: float, R: float) -> dict:
+def _pairs(package, object_name: str, kinds: list[str], signed: bool, r: float, R: float, cse: str) -> dict:
+    """{kind: (one version's Pair, A's offset, B's offset)}: each side's shape built by that version, with the
+    fixed transform from its frame to the link's (identity but for the CSE-BV, as spq bench table1 places it)."""
     from datasets import load_object
+    from harness.suites.table1 import cse_spec
 
     pch = load_object(object_name)
-    shapes = {"PCH": package.Polyhedron(pch.vertices, pch.faces)}
+    shapes = {"PCH": (package.Polyhedron(pch.vertices, pch.faces), np.eye(4))}
     if any("STP" in k for k in kinds):
-        shapes["STP"] = package.STPBV.from_points(pch.vertices, r, R)
-    return {k: package.Pair(shapes[k.split("-")[0]], shapes[k.split("-")[1]], signed=signed) for k in kinds}
+        shapes["STP"] = (package.STPBV.from_points(pch.vertices, r, R), np.eye(4))
+    if any("CSE" in k for k in kinds):
+        params = cse_spec(cse)[1]
+        if params is None:
+            shapes["CSE"] = package.Superellipsoid.fit(pch.vertices)
+        else:  # centred on the link's bounding box, axes along its axes (as table1's bodies)
+            offset = np.eye(4)
+            offset[:3, 3] = 0.5 * (pch.vertices.min(axis=0) + pch.vertices.max(axis=0))
+            shapes["CSE"] = (package.Superellipsoid(*params), offset)
+    pairs = {}
+    for kind in kinds:
+        (a, offset_a), (b, offset_b) = (shapes[side] for side in kind.split("-"))
+        pairs[kind] = (package.Pair(a, b, signed=signed), offset_a, offset_b)
+    return pairs
+
+
+def outside_bounds(a: np.ndarray, b: np.ndarray) -> int:
+    """Rows of two versions' result rows (result_rows) where either version's distance lies outside the other's
+    certified bounds by more than BOUNDS_SLACK (absolute plus relative): both cannot be right there."""
+    def outside(x, y):
+        slack = BOUNDS_SLACK * (1.0 + np.abs(y[:, 0]))
+        return (x[:, 0] < y[:, LOWER_COLUMN] - slack) | (x[:, 0] > y[:, UPPER_COLUMN] + slack)
+
+    return int((outside(a, b) | outside(b, a)).sum())
 
 
 def run(config: Config) -> Output:
@@ -103,8 +135,8 @@ def run(config: Config) -> Output:
     if prepared[0][0] == prepared[1][0]:
         raise ValueError(f"{config.old} and {config.new} hold the same spq sources: nothing to compare")
     versions = [packages.load(name, folder) for name, _, folder in prepared]
-    pairs = [_pairs(v, config.object, config.pairs, config.signed, config.r, config.R) if config.pairs else {}
-             for v in versions]
+    pairs = [_pairs(v, config.object, config.pairs, config.signed, config.r, config.R, config.cse)
+             if config.pairs else {} for v in versions]
     poses_a, poses_b = random_poses(config.poses, config.seed, config.range)
     rows = []
     bar = None
@@ -115,15 +147,16 @@ def run(config: Config) -> Output:
               "holds them (minutes each)", flush=True)
         bar = tqdm(desc="ab", unit="run", leave=False)
     for kind in config.pairs:
-        old, new = pairs[0][kind], pairs[1][kind]
-        first = [result_rows(p.distances(poses_a, poses_b, coherent=False)) for p in (old, new)]  # compiles
-        differing = rows_differing(first[0], first[1])
+        (old, offset_a, offset_b), (new, _, _) = pairs[0][kind], pairs[1][kind]
+        kind_a, kind_b = poses_a @ offset_a, poses_b @ offset_b
+        first = [result_rows(p.distances(kind_a, kind_b, coherent=False)) for p in (old, new)]  # compiles
+        differing = (rows_differing(first[0], first[1]), outside_bounds(first[0], first[1]))
         overlapping = first[0][:, STATUS_COLUMN] == OVERLAPPING
         sets = {"all": np.arange(config.poses), "overlapping": np.flatnonzero(overlapping)}
         for label, index in sets.items():
             if len(index) == 0:
                 continue
-            pa, pb = poses_a[index], poses_b[index]
+            pa, pb = np.ascontiguousarray(kind_a[index]), np.ascontiguousarray(kind_b[index])
             jobs = {side: (lambda a, b, p=p: p.distances(a, b, coherent=False), pa, pb)
                     for side, p in (("old", old), ("new", new))}
             times = _times(jobs, config, bar)
@@ -137,8 +170,8 @@ def run(config: Config) -> Output:
                     call(a[i], b[i])
 
             for p in (old, new):  # compiles
-                loop(poses_a[:2], poses_b[:2], p)
-            jobs = {side: (lambda a, b, p=p: loop(a, b, p), poses_a[:n], poses_b[:n])
+                loop(kind_a[:2], kind_b[:2], p)
+            jobs = {side: (lambda a, b, p=p: loop(a, b, p), kind_a[:n], kind_b[:n])
                     for side, p in (("old", old), ("new", new))}
             rows.append(_row(kind, "per call", "all", n, _times(jobs, config, bar), None))
     if config.robot is not None:
@@ -157,17 +190,20 @@ def run(config: Config) -> Output:
                         new_commit=prepared[1][1], packages=[p[0] for p in prepared], seed=config.seed,
                         poses=config.poses, translation_range_m=config.range, repeats=config.repeats,
                         block=config.block, signed=config.signed, object=config.object, stp_r=config.r,
+                        cse=config.cse if any("CSE" in k for k in config.pairs) else None,
                         stp_R=config.R, robot=config.robot, policies=config.policies if config.robot else None,
                         configurations=config.configs if config.robot else None,
                         robot_block=config.robot_block if config.robot else None)
     notes = f"spq at {config.old} (old) against spq at {config.new} (new), in one process."
     if config.pairs:
-        notes += (f" Two copies of {config.object} (its hull, and its STP-BV with r = {config.r} m, R = {config.R} m), "
+        notes += (f" Two copies of {config.object} (its hull, its STP-BV with r = {config.r} m, R = {config.R} m, and "
+                  f"its CSE-BV '{config.cse}' placed as spq bench table1 places it), "
                   f"{config.poses} random pose pairs (seed {config.seed}, translations within ±{config.range} m), "
                   f"{'signed' if config.signed else 'unsigned'}, cold, in blocks of {config.block} poses. "
                   "overlapping: the poses the old version finds overlapping (status), timed alone. rows_differing: "
                   "result rows (distance, witness points, normal, bounds, iterations, status) not equal bit for bit, "
-                  "over all poses. per call: Pair.cold_distance in a Python loop (the copies' Python path: they "
+                  f"over all poses; outside_bounds: rows where one version's distance lies more than {BOUNDS_SLACK:g} m "
+                  "(plus as much relative) outside the other's certified bounds, which cannot both be right. per call: Pair.cold_distance in a Python loop (the copies' Python path: they "
                   "leave the C extension out).")
     if config.robot:
         notes += (f" {config.robot} <policy>: the robot scene's cold sweep over all its pairs (each version's "
@@ -220,11 +256,13 @@ def sweep_row(versions, scenes, qs: np.ndarray, label: str, config: Config, bar)
     times = _times(jobs, config, bar, config.robot_block)
     pairs = len(scenes[0].pairs)
     return _row(f"{label} ({pairs} pairs)", "cold sweep", "configurations", len(qs) * pairs, times,
-                sweep_rows_differing(versions, outs))
+                (sweep_rows_differing(versions, outs), None))
 
 
 def _row(kind: str, mode: str, poses: str, n: int, times: dict, differing) -> dict:
+    """differing: (rows not bit-identical, rows outside the other version's bounds or None), or None."""
     old, new = times["old"], times["new"]
+    rows, outside = differing if differing is not None else ("", "")
     return {"pair": kind, "mode": mode, "poses": poses, "queries": n, "old_s": old, "new_s": new,
-            "old_over_new": old / new, "rows_differing": differing if differing is not None else "",
+            "old_over_new": old / new, "rows_differing": rows, "outside_bounds": "" if outside is None else outside,
             "old_us_per_query": 1e6 * old / n, "new_us_per_query": 1e6 * new / n}
