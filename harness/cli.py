@@ -556,6 +556,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=float, default=10.0, help="time sampled (default 10 s)")
     p.add_argument("--frequency", type=int, default=4999, help="samples a second (default 4999)")
     p.add_argument("--top", type=int, default=25, help="rows of the functions' and hot instructions' tables (default 25)")
+    p.add_argument("--annotate", nargs="+", default=[], metavar="FUNCTION",
+                   help="kernels shown instruction by instruction around their --top most sampled ones (a full name "
+                        "such as spq.kernels.epa.epa_run, or its last part), into profile_annotate.md")
     p.add_argument("--out", default=None, help="folder for the tables (default: print only)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_profile)

@@ -104,3 +104,25 @@ def test_profile_rejects_a_bad_pair_and_mode(capsys):
     assert "pair must be two of ['PCH', 'STP', 'CSE']" in capsys.readouterr().err
     assert main(["profile", "--seconds", "0.1", "--quiet"]) == 2
     assert "seconds must lie in [0.5, 3600]" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("readelf") is None or shutil.which("objdump") is None,
+                    reason="binutils (readelf, objdump) are not on PATH")
+def test_annotated_lines_give_each_sampled_instruction_its_share(tmp_path):
+    jit_symbols.install()
+    kernel = _fresh_kernel()
+    kernel(np.arange(4.0), 0.5)
+    overload = next(iter(kernel.overloads.values()))
+    placed = [s for s in jit_symbols.symbols() if s.name == overload.fndesc.mangled_name]
+    assert len(placed) == 1
+    symbol = placed[0]
+    objects = jit_symbols.dump_objects(tmp_path)
+    listing = jit_symbols.disassembly(objects[symbol.object_index], symbol.name)
+    offsets = [at - symbol.offset for at in listing]
+    assert offsets[0] == 0 and len(offsets) > 3 and all(0 <= o < symbol.size for o in offsets)
+    second = offsets[1]
+    addresses = np.array([symbol.address] * 3 + [symbol.address + second, 1], dtype=np.uint64)
+    lines = jit_symbols.annotated(addresses, symbol, objects[symbol.object_index], top=2, context=0)
+    first_line, second_line = lines[0].split(), lines[1].split()
+    assert first_line[:2] == ["60.00", "0"] and second_line[:2] == ["20.00", f"{second:x}"]
+    assert " ".join(first_line[2:]) == listing[symbol.offset]

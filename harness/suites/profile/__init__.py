@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +47,7 @@ class Config:
     seconds: float = 10.0  # sampled time
     frequency: int = 4999  # samples a second
     top: int = 25  # rows of the functions' and the hot instructions' tables
+    annotate: list[str] = field(default_factory=list)  # functions (a full name, or its last part) shown by instruction
     progress: bool = False
 
 
@@ -189,12 +190,43 @@ def run(config: Config) -> Output:
     out = Output(meta=meta, tables=[Table("profile_functions", f"Profile by function: {what}", top, notes),
                                     Table("profile_areas", f"Profile by area: {what}", areas, notes)],
                  raw={"profile_samples.csv": samples[["share", "object", "symbol", "function", "area"]]})
-    spots, out.raw["profile_symbols.csv"] = _hot_spots(data, folder, config.top)
+    placed = jit_symbols.symbols()
+    objects = jit_symbols.dump_objects(folder / "objects")
+    addresses = sampling.sample_addresses(data, os.getpid())
+    spots, out.raw["profile_symbols.csv"] = _hot_spots(addresses, placed, objects, config.top)
     out.tables.append(Table("profile_hot_spots", f"Hot instructions: {what}", spots, notes + spot_notes))
+    annotations = _annotations(config.annotate, addresses, placed, objects, config.top)
+    if annotations:
+        out.documents["profile_annotate.md"] = (f"# Instructions of the annotated kernels: {what}\n\n"
+                                                "percent of all samples, offset in the function, instruction, "
+                                                f"around its {config.top} most sampled ones (a sample usually lands "
+                                                "on the instruction after the one that held the thread up)\n"
+                                                + "".join(f"\n## {name}\n\n```\n" + "\n".join(lines) + "\n```\n"
+                                                          for name, lines in annotations.items()))
     out.lines = ([what, f"{runs} runs in {seconds:.1f} s, {1e6 * seconds / max(queries * runs, 1):.3f} us a query "
                   f"(under perf), {count} samples; perf data and the kernels' objects in {folder}"]
                  + frame_lines(areas.head(12)) + [""] + frame_lines(top) + [""] + frame_lines(spots.head(12)))
+    for name, lines in annotations.items():
+        out.lines += ["", name] + lines
     return out
+
+
+def _annotations(names: list[str], addresses, placed, objects, top: int) -> dict[str, list[str]]:
+    """{function: its annotated lines} for each name (a full name, or the last part of one)."""
+    from harness.suites.profile import jit_symbols
+
+    found = {}
+    for name in names:
+        matches = [s for s in placed if jit_symbols.readable(s.name) == name
+                   or jit_symbols.readable(s.name).endswith("." + name)]
+        if not matches:
+            raise ValueError(f"annotate: no compiled kernel named {name!r} ran in this job: it may be inlined into "
+                             "its caller, which then holds its code (profile_symbols.csv lists the kernels that ran)")
+        for symbol in matches:  # a kernel compiled for several argument types has one symbol each
+            key = jit_symbols.readable(symbol.name)
+            key = key if key not in found else f"{key} ({hex(symbol.address)})"
+            found[key] = jit_symbols.annotated(addresses, symbol, objects[symbol.object_index], top)
+    return found
 
 
 def _percent_by(samples: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -204,14 +236,11 @@ def _percent_by(samples: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return frame.assign(share=(100 * frame.share).round(2)).rename(columns={"share": "percent"})
 
 
-def _hot_spots(data: Path, folder: Path, top: int) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(the top hot instructions of the kernels, every named kernel's symbol row), the kernels' objects written
-    into folder/objects for the disassembly."""
-    from harness.suites.profile import jit_symbols, sampling
+def _hot_spots(addresses, placed, objects, top: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(the top hot instructions of the kernels, every named kernel's symbol row)."""
+    from harness.suites.profile import jit_symbols
 
-    placed = jit_symbols.symbols()
-    objects = jit_symbols.dump_objects(folder / "objects")
-    spots = jit_symbols.hot_spots(sampling.sample_addresses(data, os.getpid()), placed, top)
+    spots = jit_symbols.hot_spots(addresses, placed, top)
     table = pd.DataFrame({"function": spots.function, "offset": [hex(v) for v in spots.offset],
                           "percent": (100 * spots.share).round(2),
                           "instruction": jit_symbols.instructions(objects, spots)})

@@ -209,26 +209,55 @@ def hot_spots(addresses: np.ndarray, placed: list[Symbol], top: int) -> pd.DataF
 _TARGET = re.compile(r"<[^<>+]*(\+0x[0-9a-f]+)?>")  # a jump's target: its mangled name left out
 
 
+def disassembly(object_file: Path, symbol: str) -> dict[int, str]:
+    """One function's instructions as objdump reads them from its object: {offset in the object's section:
+    instruction}, in address order; empty where objdump is missing or does not know the symbol."""
+    if shutil.which("objdump") is None:
+        return {}
+    out = subprocess.run(["objdump", "-d", "--no-show-raw-insn", f"--disassemble={symbol}", str(object_file)],
+                         capture_output=True, text=True).stdout
+    lines = {}
+    for line in out.splitlines():
+        head, _, rest = line.partition(":\t")
+        if rest and head.strip():
+            try:
+                lines[int(head.strip(), 16)] = _TARGET.sub(r"<\1>", " ".join(rest.split()))
+            except ValueError:
+                pass
+    return lines
+
+
 def instructions(objects: list[Path], spots: pd.DataFrame) -> list[str]:
     """Each hot spot's instruction as objdump reads it from its object (the sampled address is often the
     instruction after the one that stalled: perf's skid); "" where objdump is missing or says nothing."""
-    if shutil.which("objdump") is None:
-        return [""] * len(spots)
     listings: dict[tuple[int, str], dict[int, str]] = {}
     text = []
     for spot in spots.itertuples():
         key = (spot.object_index, spot.symbol)
         if key not in listings:
-            out = subprocess.run(["objdump", "-d", "--no-show-raw-insn", f"--disassemble={spot.symbol}",
-                                  str(objects[spot.object_index])], capture_output=True, text=True).stdout
-            lines = {}
-            for line in out.splitlines():
-                head, _, rest = line.partition(":\t")
-                if rest and head.strip():
-                    try:
-                        lines[int(head.strip(), 16)] = _TARGET.sub(r"<\1>", " ".join(rest.split()))
-                    except ValueError:
-                        pass
-            listings[key] = lines
+            listings[key] = disassembly(objects[spot.object_index], spot.symbol)
         text.append(listings[key].get(spot.object_offset + spot.offset, ""))
     return text
+
+
+def annotated(addresses: np.ndarray, symbol: Symbol, object_file: Path, top: int, context: int = 4) -> list[str]:
+    """Lines "percent  offset  instruction" of one function around its ``top`` most sampled instructions
+    (``context`` instructions before each, one after), percent of all samples given; "..." between runs."""
+    inside = addresses[(addresses >= symbol.address) & (addresses < symbol.address + symbol.size)]
+    offsets, counts = np.unique((inside - np.uint64(symbol.address)).astype(np.int64), return_counts=True)
+    count = dict(zip(offsets.tolist(), counts.tolist()))
+    listing = [(at - symbol.offset, text) for at, text in disassembly(object_file, symbol.name).items()]
+    where = {offset: i for i, (offset, _) in enumerate(listing)}
+    shown = set()
+    for offset in sorted(count, key=count.get, reverse=True)[:top]:
+        if offset in where:
+            i = where[offset]
+            shown.update(range(max(0, i - context), min(len(listing), i + 2)))
+    lines, previous = [], None
+    for i in sorted(shown):
+        if previous is not None and i != previous + 1:
+            lines.append("   ...")
+        offset, text = listing[i]
+        lines.append(f"{100 * count.get(offset, 0) / max(len(addresses), 1):6.2f}  {offset:6x}  {text}")
+        previous = i
+    return lines
