@@ -69,24 +69,24 @@ class Recording:
 def samples_by_symbol(path: Path, tid: int) -> tuple[pd.DataFrame, int]:
     """The samples of thread ``tid`` in recording ``path`` by (shared object, symbol): a table with columns
     share (of that thread's samples), object, symbol; and the thread's sample count. Run while the
-    process's perf map is in /tmp (perf names JIT code from it at report time)."""
-    base = [perf_path(), "report", "-i", str(path), "--tid", str(tid), "--stdio", "--no-children"]
-    text = subprocess.run(base + ["--sort", "dso,sym", "-q", "--percentage", "relative", "-t", SEPARATOR],
-                          capture_output=True, text=True, check=True).stdout
+    process's perf map is in /tmp (perf names JIT code from it at report time). The shares come from perf's
+    sample counts, not its percentages (which, filtered by thread, need not sum to 100)."""
+    cmd = [perf_path(), "report", "-i", str(path), "--tid", str(tid), "--stdio", "--no-children", "--sort", "dso,sym",
+           "-F", "sample,dso,sym", "-q", "-t", SEPARATOR]
+    text = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
     rows = []
     for line in text.splitlines():
         fields = [f.strip() for f in line.split(SEPARATOR)]
-        if len(fields) < 3 or not fields[0].endswith("%"):
+        if len(fields) < 3 or not fields[0].isdigit():
             continue
         symbol = fields[2]
         if symbol.startswith("[") and "] " in symbol:  # "[.] name": perf's mark for user code
             symbol = symbol.split("] ", 1)[1]
-        rows.append({"share": float(fields[0].rstrip("%")) / 100.0, "object": fields[1], "symbol": symbol})
-    counts = subprocess.run(base + ["--sort", "comm", "-F", "sample", "-q"], capture_output=True, text=True,
-                            check=True).stdout
-    count = sum(int(line.split()[0]) for line in counts.splitlines() if line.strip()[:1].isdigit())
-    return pd.DataFrame(rows, columns=["share", "object", "symbol"]), count
-
+        rows.append({"samples": int(fields[0]), "object": fields[1], "symbol": symbol})
+    table = pd.DataFrame(rows, columns=["samples", "object", "symbol"])
+    count = int(table.samples.sum())
+    table.insert(0, "share", table.samples / max(count, 1))
+    return table.drop(columns="samples"), count
 
 
 def sample_addresses(path: Path, tid: int) -> np.ndarray:
