@@ -26,6 +26,7 @@ from harness.suites import Output, Table, frame_lines
 
 VOLUMES = ("PCH", "STP", "CSE")
 MODES = ("batched", "per-call", "plain")
+UNNAMED_WARNING = 10.0  # percent of the samples in unnamed compiled code above which the output says why
 
 
 @dataclass
@@ -208,6 +209,11 @@ def run(config: Config) -> Output:
                  + frame_lines(areas.head(12)) + [""] + frame_lines(top) + [""] + frame_lines(spots.head(12)))
     for name, lines in annotations.items():
         out.lines += ["", name] + lines
+    unnamed = float(areas.loc[areas.area == "JIT (unnamed)", "percent"].sum())
+    if unnamed > UNNAMED_WARNING:
+        out.lines.append(f"warning: {unnamed:.0f}% of the samples fell in compiled code no map names: kernels this "
+                         "process loaded before the profiler started keep no object code (run spq profile in a "
+                         "process of its own)")
     return out
 
 
