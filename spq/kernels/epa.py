@@ -458,16 +458,14 @@ def _plane_of(work, a, b, c, c0, c1, c2):
     sides = (u0 * u0 + u1 * u1 + u2 * u2) * (v0 * v0 + v1 * v1 + v2 * v2)
     if not (nn * nn > SLIVER_SIN * SLIVER_SIN * sides):
         return PLANE_SLIVER, 0.0, 0.0, 0.0, 0.0
-    # The offset from the unnormalised normal, one division after the square root, where dividing
-    # first and then the dot product by 3 put two divisions and a dot product after it: the offset keys
-    # the next face to expand, so that chain is the expansion's. (Divisions, not a reciprocal's
-    # products: those cost a second rounding, which moved the touching poses' largest error against
-    # the exact reference from 8.4e-16 to 3.6e-15 m for 4% of an overlap.)
-    total = (n0 * (work[ra, 0] + work[rb, 0] + work[rc, 0]) + n1 * (work[ra, 1] + work[rb, 1] + work[rc, 1])
-             + n2 * (work[ra, 2] + work[rb, 2] + work[rc, 2]))
-    if not (3.0 * (n0 * c0 + n1 * c1 + n2 * c2) < total):
+    # (divisions, not a reciprocal's products: those cost a second rounding, which moved the touching
+    # poses' largest error against the exact reference from 8.4e-16 to 3.6e-15 m for 4% of an overlap)
+    n0, n1, n2 = n0 / nn, n1 / nn, n2 / nn
+    off = (n0 * (work[ra, 0] + work[rb, 0] + work[rc, 0]) + n1 * (work[ra, 1] + work[rb, 1] + work[rc, 1])
+           + n2 * (work[ra, 2] + work[rb, 2] + work[rc, 2])) / 3.0
+    if not (n0 * c0 + n1 * c1 + n2 * c2 < off):
         return PLANE_INWARD, 0.0, 0.0, 0.0, 0.0
-    return PLANE_OK, n0 / nn, n1 / nn, n2 / nn, total / (3.0 * nn)
+    return PLANE_OK, n0, n1, n2, off
 
 
 @kernel
