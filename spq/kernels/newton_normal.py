@@ -23,7 +23,7 @@ import math
 
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import STP, SUPERELLIPSOID
-from spq.kernels.stp_support import stp_support_jacobian
+from spq.kernels.stp_support import stp_support_curvature
 from spq.kernels.superellipsoid_support import F_E1, F_E2, superellipsoid_support_jacobian
 
 NEWTON_EVALUATIONS = 12  # support pairs (with derivatives) before the caller's GJK takes over
@@ -64,9 +64,13 @@ def smooth_against_stp(kA, fA, kB, fB):
 @kernel(inline="always")
 def _side(k, f, ix, d0, d1, d2, hints, slot, out, jac):
     """One body's support along the unit d and its derivative (see _evaluate); an STP-BV's search
-    starts from hints[slot] and leaves its patch there."""
+    starts from hints[slot] and leaves its patch there. An STP-BV's derivative is stored compact
+    (stp_support_curvature): jac[0, 0] = rad, jac[0, 1] = s, jac[1] = t; a superellipsoid's in full."""
     if k == STP:
-        hints[slot] = stp_support_jacobian(f, ix, d0, d1, d2, hints[slot], out, jac)
+        p, rad, s, t0, t1, t2 = stp_support_curvature(f, ix, d0, d1, d2, hints[slot], out)
+        hints[slot] = p
+        jac[0, 0], jac[0, 1] = rad, s
+        jac[1, 0], jac[1, 1], jac[1, 2] = t0, t1, t2
         return True
     return superellipsoid_support_jacobian(f, d0, d1, d2, out, jac)
 
@@ -74,7 +78,7 @@ def _side(k, f, ix, d0, d1, d2, hints, slot, out, jac):
 @kernel
 def _evaluate(pair, n0, n1, n2, pa, pb, tmp, JA, JB, hints):
     """Support points pa = s_A(n), pb = s_B(-n) (A's frame) and their derivatives JA, JB (JB in
-    B's frame); False where a derivative does not exist."""
+    B's frame, each as _side stores it); False where a derivative does not exist."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     ok_a = _side(kA, fA, iA, n0, n1, n2, hints, 0, pa, JA)
     b0 = -(R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2)
@@ -100,7 +104,7 @@ def tangent_basis(n0, n1, n2):
 
 @kernel(inline="always")
 def _form(JA, JB, R, x0, x1, x2, y0, y1, y2):
-    """x^T (JA + R JB R^T) y."""
+    """x^T (JA + R JB R^T) y, both derivatives in full (two superellipsoids)."""
     s = 0.0
     bx0 = R[0, 0] * x0 + R[1, 0] * x1 + R[2, 0] * x2
     bx1 = R[0, 1] * x0 + R[1, 1] * x1 + R[2, 1] * x2
@@ -118,6 +122,40 @@ def _form(JA, JB, R, x0, x1, x2, y0, y1, y2):
     return s
 
 
+@kernel(inline="always")
+def _forms(k, J, x0, x1, x2, y0, y1, y2):
+    """(x^T J x, x^T J y, y^T J y) of one side's derivative J (stored as _side stores it, in the side's
+    frame) for orthonormal x, y orthogonal to the side's direction (its frame too): for an STP-BV,
+    rad (x.y) - s (t.x)(t.y), the direction's own term u u^T vanishing across it."""
+    if k == STP:
+        tx = J[1, 0] * x0 + J[1, 1] * x1 + J[1, 2] * x2
+        ty = J[1, 0] * y0 + J[1, 1] * y1 + J[1, 2] * y2
+        rad, s = J[0, 0], J[0, 1]
+        return rad - s * tx * tx, -s * tx * ty, rad - s * ty * ty
+    xs = (x0, x1, x2)
+    ys = (y0, y1, y2)
+    xx = xy = yy = 0.0
+    for i in range(3):
+        for j in range(3):
+            xx += xs[i] * J[i, j] * xs[j]
+            xy += xs[i] * J[i, j] * ys[j]
+            yy += ys[i] * J[i, j] * ys[j]
+    return xx, xy, yy
+
+
+@kernel(inline="always")
+def _system(kA, JA, kB, JB, R, b0, b1, b2, e0, e1, e2):
+    """(b^T M b, b^T M e, e^T M e) for M = JA + R JB R^T, the tangent basis (b, e) in A's frame."""
+    if kA != STP and kB != STP:
+        return (_form(JA, JB, R, b0, b1, b2, b0, b1, b2), _form(JA, JB, R, b0, b1, b2, e0, e1, e2),
+                _form(JA, JB, R, e0, e1, e2, e0, e1, e2))
+    xa, ya, za = _forms(kA, JA, b0, b1, b2, e0, e1, e2)
+    xb, yb, zb = _forms(kB, JB, R[0, 0] * b0 + R[1, 0] * b1 + R[2, 0] * b2, R[0, 1] * b0 + R[1, 1] * b1 + R[2, 1] * b2,
+                        R[0, 2] * b0 + R[1, 2] * b1 + R[2, 2] * b2, R[0, 0] * e0 + R[1, 0] * e1 + R[2, 0] * e2,
+                        R[0, 1] * e0 + R[1, 1] * e1 + R[2, 1] * e2, R[0, 2] * e0 + R[1, 2] * e1 + R[2, 2] * e2)
+    return xa + xb, ya + yb, za + zb
+
+
 @kernel
 def newton_normal(pair, n, lower, tol_abs, tol_rel, best_a, best_b, work, hints):
     """Newton's method from the unit normal n (A to B, A's frame) of a separated pair of smooth
@@ -129,7 +167,7 @@ def newton_normal(pair, n, lower, tol_abs, tol_rel, best_a, best_b, work, hints)
     work: (9, 3) scratch. hints: int64 (2,), the patches an STP-BV side (A: 0, B: 1) starts its
     searches from (-1: none), left on its last patches.
     """
-    R = pair[8]
+    kA, kB, R = pair[0], pair[4], pair[8]
     n0, n1, n2 = n
     pa = work[0]
     pb = work[1]
@@ -178,9 +216,9 @@ def newton_normal(pair, n, lower, tol_abs, tol_rel, best_a, best_b, work, hints)
         accepted = lo
         m0, m1, m2 = n0, n1, n2
         b0, b1, b2, e0, e1, e2 = tangent_basis(n0, n1, n2)
-        a00 = _form(JA, JB, R, b0, b1, b2, b0, b1, b2) + lo
-        a01 = _form(JA, JB, R, b0, b1, b2, e0, e1, e2)
-        a11 = _form(JA, JB, R, e0, e1, e2, e0, e1, e2) + lo
+        a00, a01, a11 = _system(kA, JA, kB, JB, R, b0, b1, b2, e0, e1, e2)
+        a00 += lo
+        a11 += lo
         r0 = -(b0 * s0 + b1 * s1 + b2 * s2)
         r1 = -(e0 * s0 + e1 * s1 + e2 * s2)
         det = a00 * a11 - a01 * a01

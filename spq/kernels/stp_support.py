@@ -286,6 +286,35 @@ def hull_core(k, m, f, ix):
     return k, m, f[0:f.shape[0]], ix[0:ix.shape[0]]
 
 
+@kernel(inline="always")  # into Newton on the normal's evaluation, its hot caller
+def stp_support_curvature(f, ix, u0, u1, u2, start, out):
+    """Support point along the unit direction u into out[0:3], and its derivative on the unit sphere
+    in compact form: returns (patch, rad, s, t0, t1, t2), the derivative being
+    rad (I - u u^T) - s t t^T (see stp_support_jacobian; s = 0 and t = 0 off the tori). The patch is
+    the next call's ``start``.
+
+    Across u (x, y orthogonal to u) the derivative's quadratic form is then rad x.y - s (t.x)(t.y):
+    Newton on the normal needs only that, three dot products where the full matrix took two 3 x 3
+    quadratic forms a side."""
+    p, _ = find_patch(f, ix, ix[IDX_METHOD], start, u0, u1, u2)
+    V, F = ix[IDX_V], ix[IDX_F]
+    if p < V + F:
+        c0, c1, c2, rad = ball_of_patch(f, ix, p, u0, u1, u2)
+        out[0] = c0 + rad * u0
+        out[1] = c1 + rad * u1
+        out[2] = c2 + rad * u2
+        return p, rad, 0.0, 0.0, 0.0, 0.0
+    k = _offsets(ix)[1] + 7 * (p - V - F)
+    e0, e1, e2, a, w0, w1, w2, wn = torus_direction(f, k, u0, u1, u2)
+    rad = f[F_BIG_R]
+    out[0] = f[at(k)] - a * w0 + rad * u0
+    out[1] = f[at(k + 1)] - a * w1 + rad * u1
+    out[2] = f[at(k + 2)] - a * w2 + rad * u2
+    if not (wn > 0.0):
+        return p, rad, 0.0, 0.0, 0.0, 0.0
+    return p, rad, a / wn, e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
+
+
 @kernel
 def stp_support_jacobian(f, ix, u0, u1, u2, start, out, jac):
     """Support point along the unit direction u into out[0:3] and its derivative on the unit
@@ -296,24 +325,12 @@ def stp_support_jacobian(f, ix, u0, u1, u2, start, out, jac):
     rad (I - u u^T); a torus's ball centre m - a w turns with w, the unit part of u across the
     torus axis e, which subtracts (a / |u - (u.e) e|) t t^T, t = e x w, along the circle. Both are
     positive semi-definite on the patch's region (the torus's radius of curvature along its circle
-    is at least r there), and they jump where the patch changes."""
-    p, _ = find_patch(f, ix, ix[IDX_METHOD], start, u0, u1, u2)
-    c0, c1, c2, rad = ball_of_patch(f, ix, p, u0, u1, u2)
-    out[0] = c0 + rad * u0
-    out[1] = c1 + rad * u1
-    out[2] = c2 + rad * u2
+    is at least r there), and they jump where the patch changes. (stp_support_curvature's compact
+    form, as a matrix.)"""
+    p, rad, s, t0, t1, t2 = stp_support_curvature(f, ix, u0, u1, u2, start, out)
     u = (u0, u1, u2)
+    tv = (t0, t1, t2)
     for i in range(3):
         for j in range(3):
-            jac[i, j] = rad * ((1.0 if i == j else 0.0) - u[i] * u[j])
-    V, F = ix[IDX_V], ix[IDX_F]
-    if p >= V + F:
-        e0, e1, e2, a, w0, w1, w2, wn = torus_direction(f, _offsets(ix)[1] + 7 * (p - V - F), u0, u1, u2)
-        if wn > 0.0:
-            t0, t1, t2 = e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
-            s = a / wn
-            tv = (t0, t1, t2)
-            for i in range(3):
-                for j in range(3):
-                    jac[i, j] -= s * tv[i] * tv[j]
+            jac[i, j] = rad * ((1.0 if i == j else 0.0) - u[i] * u[j]) - s * tv[i] * tv[j]
     return p
