@@ -34,7 +34,7 @@ from spq.kernels.frames import rot_to_a, rot_to_b, to_a, to_b
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import STP, SUPERELLIPSOID
-from spq.kernels.stp_support import IDX_F, IDX_METHOD, IDX_V, _offsets, ball_of_patch, find_patch
+from spq.kernels.stp_support import IDX_F, IDX_V, _offsets, ball_of_patch, find_patch_near
 from spq.kernels.superellipsoid_support import F_E1, F_E2, support_point
 
 # Newton on the superellipsoid's nearest point runs first, before Newton on the normal, where an
@@ -100,7 +100,6 @@ def patch_newton(pair, n, tol_abs, tol_rel, best_a, best_b, work, hints):
     x0, x1, x2 = support_point(fX, v0, v1, v2)
     V, F = iS[IDX_V], iS[IDX_F]
     o_tori = _offsets(iS)[1]
-    method = iS[IDX_METHOD]
     upper, lower = math.inf, -math.inf
     accepted = math.inf  # the upper bound at the last accepted point a, from which the step f was taken
     a0, a1, a2 = x0, x1, x2
@@ -119,7 +118,7 @@ def patch_newton(pair, n, tol_abs, tol_rel, best_a, best_b, work, hints):
             break
         n0, n1, n2 = g[0] / gn, g[1] / gn, g[2] / gn  # the superellipsoid's normal, towards the STP-BV
         u0, u1, u2 = rot_to_b(Q, -n0, -n1, -n2)  # the STP-BV's support direction, its frame
-        p, _ = find_patch(fS, iS, method, hints[slot], u0, u1, u2)
+        p = find_patch_near(fS, iS, hints[slot], u0, u1, u2)
         hints[slot] = p
         c0, c1, c2, rad = ball_of_patch(fS, iS, p, u0, u1, u2)
         s0, s1, s2 = to_a(Q, q, c0 + rad * u0, c1 + rad * u1, c2 + rad * u2)
