@@ -225,7 +225,7 @@ def find_patch_near(f, ix, start, u0, u1, u2):
     the STP-BV does not search by METHOD_NAIVE), else by the STP-BV's own search. For a start close
     to u: a Newton method's normals move little between its evaluations, so the last patch or one a
     step or two away owns the next, where find_hull would search the hull anew whenever the last patch
-    no longer holds (CSE-STP 1.03x to 1.05x, bit-identical: docs/notes/speed-45.md, stop 125)."""
+    no longer holds (CSE-STP 1.01x to 1.07x, bit-identical: docs/notes/speed-45.md, stop 125)."""
     if ix[IDX_METHOD] != METHOD_NAIVE and 0 <= start < ix[IDX_V] + ix[IDX_F] + ix[IDX_E]:
         p, _ = find_march(f, ix, _offsets(ix)[2], start, u0, u1, u2)
         return p
