@@ -500,3 +500,22 @@ def test_two_stp_bvs_overlapping_with_their_hulls_apart_agree_with_the_depth_ora
         assert signed.lower_bound[i] - 1e-12 <= oracle <= signed.upper_bound[i] + 1e-12, i
         gap = signed.point_b[i] - signed.point_a[i] - signed.distance[i] * signed.normal[i]
         assert np.abs(gap).max() <= 1e-12, i
+
+
+@pytest.mark.parametrize("R", [0.3, 2.0])
+def test_newton_support_from_any_start_patch_is_the_brute_force_support(R):
+    """Newton's methods find the next patch by a guided march from the last one (find_patch_near):
+    from any start, however far from the direction, the support is the brute-force oracle's."""
+    from harness.references.stp_oracle import BruteForceSTP
+    from spq.kernels.stp_support import stp_support_jacobian
+
+    points = np.random.default_rng(32).normal(size=(20, 3)) * [0.05, 0.03, 0.04]
+    stp = STPBV.from_points(points, 0.005, R)
+    oracle = BruteForceSTP(points, 0.005, R)
+    kd = stp.kernel_data()
+    rng = np.random.default_rng(33)
+    out, jac = np.empty(3), np.empty((3, 3))
+    for u in _tangent_directions(points):
+        start = int(rng.integers(stp.n_patches))
+        stp_support_jacobian(kd.fdata, kd.idata, u[0], u[1], u[2], start, out, jac)
+        np.testing.assert_allclose(out, oracle.support_many(u)[0], rtol=0, atol=1e-12)
