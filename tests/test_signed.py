@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import spq
@@ -399,3 +401,29 @@ def test_patch_rounds_skipped_where_the_hulls_overlap_could_not_have_closed():
             elif verdict == 1 and signed_auto[i, p, OUT_DISTANCE] > -0.5 * r:
                 closed_shallow += 1
     assert skipped >= 20 and closed_shallow >= 20
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(4, 40), st.integers(0, 2**32 - 1), st.booleans())
+def test_tied_vertices_are_the_two_farthest_along_a_direction(n, seed, plant_tie):
+    """epa._tied_vertices (the polytope side's two farthest vertices along e, and whether they tie) against
+    a sort of every vertex's value; a planted tie (a vertex copied and moved across e) is found."""
+    from spq.kernels.epa import TIE_REL, _tied_vertices
+
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3))
+    e = rng.normal(size=3)
+    e /= np.linalg.norm(e)
+    if plant_tie:
+        best = int(np.argmax(pts @ e))
+        across = np.cross(e, rng.normal(size=3))
+        pts[(best + 1) % n] = pts[best] + 0.1 * across / np.linalg.norm(across)
+    i1, i2, tied = _tied_vertices(pts.ravel(), e[0], e[1], e[2], TIE_REL)
+    values = pts @ e  # (numpy's rounding, not the kernel's: a planted tie may swap within an ulp)
+    top = np.sort(values)[::-1]
+    assert i1 != i2 and abs(values[i1] - top[0]) <= 1e-14 and abs(values[i2] - top[1]) <= 1e-14
+    gap, line = top[0] - top[1], TIE_REL * np.abs(pts).max()
+    if abs(gap - line) > 1e-14:
+        assert tied == (gap <= line)
+    if plant_tie:
+        assert tied

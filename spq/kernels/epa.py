@@ -31,8 +31,10 @@ leniently: a fan that cannot be made is tried again with the faces whose planes 
 below (LENIENT_REL) replaced too, on a nearly flat stretch of D where the point is within rounding
 of them. P then drops those faces' other corners from its boundary and is no longer exactly convex,
 but it still lies in D (its boundary is a closed surface of D's points about the origin), so its
-faces still bound the depth. If the bounds do not meet the tolerance in the end, the caller reports
-them with status FAILED.
+faces still bound the depth. A run between a polytope and a superellipsoid that still ends short where
+the polytope's support ties over an edge takes that edge's other end for each of its vertices from one
+end (_tie_partners) and goes on once. If the bounds do not meet the tolerance in the end, the caller
+reports them with status FAILED.
 
 Witness points: on the face of least offset, the barycentric coordinates of the origin's projection
 combine its corners' support points of A and of B, so that point_b - point_a = sd * normal and both
@@ -104,6 +106,7 @@ from spq.kernels.gjk import (
 )
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
+from spq.kernels.kinds import POLYTOPE, SUPERELLIPSOID
 
 SLIVER_SIN = 1e-7  # least sine of a face's largest angle: below, its plane is ill-defined in floating point
 VISIBLE_REL = 1e-13  # a face sees a point above its plane by more than this times the polytope's size
@@ -132,6 +135,9 @@ MAX_BLOCKED = 8
 # polytope's size) below also replaced (see epa_run). A run that closes never takes it, so its
 # result does not depend on it.
 LENIENT_REL = 1e-9
+# A polytope's vertices whose support values along a direction lie within this (relative to its largest
+# coordinate) of the best tie there: see _tie_partners.
+TIE_REL = 1e-6
 
 # why the last run stopped, kept in the scratch (work[EPA_ROW + EPA_TMP, 3]) for diagnostics
 STOP_CLOSED, STOP_ITERATIONS, STOP_VERTICES, STOP_NO_PROGRESS = 1, 2, 3, 4
@@ -909,6 +915,105 @@ def bounds_closed(upper, lower, tol_abs, tol_rel):
                                                                                        and lower >= -tol_abs)
 
 
+@kernel(inline="always")
+def tie_side(kA, kB):
+    """1 (B) or 0 (A): the polytope side of a polytope and a superellipsoid, whose EPA may take
+    _tie_partners; -1 for any other pair."""
+    if kA == SUPERELLIPSOID and kB == POLYTOPE:
+        return 1
+    if kA == POLYTOPE and kB == SUPERELLIPSOID:
+        return 0
+    return -1
+
+
+@kernel
+def _tied_vertices(f, e0, e1, e2, rel):
+    """The two vertices of polytope f (vertices in its own frame) farthest along e, and whether the
+    second lies within rel (times the largest |coordinate|) of the first along it."""
+    best = second = -math.inf
+    i1 = i2 = -1
+    scale = 0.0
+    for i in range(f.shape[0] // 3):
+        x0, x1, x2 = f[at(3 * i)], f[at(3 * i + 1)], f[at(3 * i + 2)]
+        scale = max(scale, abs(x0), abs(x1), abs(x2))
+        v = e0 * x0 + e1 * x1 + e2 * x2
+        if v > best:
+            second, i2 = best, i1
+            best, i1 = v, i
+        elif v > second:
+            second, i2 = v, i
+    return i1, i2, i2 >= 0 and best - second <= rel * scale
+
+
+@kernel
+def _tie_partners(pair, side, n0, n1, n2, nv, top, eps, c0, c1, c2, work, iw):
+    """Where the polytope side's support along the unit normal n (A's frame) of P's least face ties
+    between two vertices v and v' (an edge of the polytope faces the superellipsoid), every vertex of
+    P that came from v gets a partner from v': the same superellipsoid point with v' for v, a point of D
+    (so P stays in D); and likewise from v' to v. A run that stalls short of the tolerance there has
+    its support points on two near-lines of D's ruled strip (the superellipsoid's points less either
+    end of the edge), and its faces joining three points of one line are slivers whose planes floating
+    point cannot place; the partners make faces across the strip, whose planes it can. Of 400 poses
+    within 1e-6 m of fuzz case cse-signed-failed-14, 175 failed without them and 54 with them; the
+    kind's other cases (12, 13) still fail where degenerate faces of one end refuse the fan from the
+    next support point (docs/notes/speed-45.md, stop 126). Returns (nv, top, partners added)."""
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    if side == 1:  # B's support is along -n, in B's frame
+        e0 = -(R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2)
+        e1 = -(R[0, 1] * n0 + R[1, 1] * n1 + R[2, 1] * n2)
+        e2 = -(R[0, 2] * n0 + R[1, 2] * n1 + R[2, 2] * n2)
+        fp = fB
+    else:
+        e0, e1, e2 = n0, n1, n2
+        fp = fA
+    v, v2, tied = _tied_vertices(fp, e0, e1, e2, TIE_REL)
+    if not tied:
+        return nv, top, 0
+    added = 0
+    m = nv
+    for i in range(m):
+        if nv >= EPA_MAX_VERTICES:
+            break
+        own = feature(iw, i, side)
+        if own != v and own != v2:
+            continue
+        other = v2 if own == v else v
+        q0, q1, q2 = fp[at(3 * other)], fp[at(3 * other + 1)], fp[at(3 * other + 2)]
+        if side == 1:  # into A's frame
+            q0, q1, q2 = (R[0, 0] * q0 + R[0, 1] * q1 + R[0, 2] * q2 + t[0],
+                          R[1, 0] * q0 + R[1, 1] * q1 + R[1, 2] * q2 + t[1],
+                          R[2, 0] * q0 + R[2, 1] * q1 + R[2, 2] * q2 + t[2])
+        r = _row(nv)
+        for c in range(3):
+            if side == 1:
+                work[EPA_ROW + EPA_PA + nv, c] = work[EPA_ROW + EPA_PA + i, c]
+                work[EPA_ROW + EPA_PB + nv, c] = (q0, q1, q2)[c]
+            else:
+                work[EPA_ROW + EPA_PA + nv, c] = (q0, q1, q2)[c]
+                work[EPA_ROW + EPA_PB + nv, c] = work[EPA_ROW + EPA_PB + i, c]
+            work[r, c] = work[EPA_ROW + EPA_PA + nv, c] - work[EPA_ROW + EPA_PB + nv, c]
+        if _is_vertex(work, nv, work[r]):
+            continue
+        g = -1
+        for h in range(top):  # a live face that sees it (none: it lies in P already)
+            if _alive(iw, h) and _height(work, h, work[r]) > eps:
+                g = h
+                break
+        if g < 0:
+            continue
+        if side == 1:
+            _set_features(iw, nv, feature(iw, i, 0), other)
+        else:
+            _set_features(iw, nv, other, feature(iw, i, 1))
+        clear_sphere(work, nv)
+        iw[EPA_IOFF + EPA_CLOCK] += 1
+        stop, top = _expand(work, iw, g, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
+        if stop == 0:
+            nv += 1
+            added += 1
+    return nv, top, added
+
+
 @kernel
 def epa_start(pair, k, simplex, warm, work, iw, out):
     """The initial polytope: the k simplex points (rows of SW = SPA - SPB, their support features in
@@ -987,113 +1092,132 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
     near = False  # whether upper is the distance to P (the origin outside it), witnesses in out
     blocked = 0
     lenient = False  # the last resort of a run stopped by expansions floating point could not make
+    # a polytope against a superellipsoid that stalls short of the tolerance takes _tie_partners once
+    ties = tie_side(kA, kB)
+    polished = ties < 0
     while True:
-        f, off = _least_face(work, iw, top)
-        least = off
-        if blocked > 0:
-            if f < 0:  # every live face set aside: take them back and stop
-                _unblock_all(work, iw, top)
-                f, off = _least_face(work, iw, top)
-                if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, STOP_FAN_INWARD):
+        while True:
+            f, off = _least_face(work, iw, top)
+            least = off
+            if blocked > 0:
+                if f < 0:  # every live face set aside: take them back and stop
+                    _unblock_all(work, iw, top)
+                    f, off = _least_face(work, iw, top)
+                    if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, STOP_FAN_INWARD):
+                        lenient, blocked = True, 0
+                        continue
+                    break
+                least = min(off, _blocked_least(work, iw, top))
+            if sides != 0 and off > 0.0 and off >= -lower * (1.0 - CERT_WINDOW) and not tried(work, f) and \
+                    may_certify(pair, sides, work, iw, f, first):
+                set_tried(work, f, True)
+                row = at(EPA_ROW + EPA_PLANES + f)
+                r, u0, u1, u2, depth, core = face_certificate(pair, sides, work, iw, f, first, work[row, 0],
+                                                              work[row, 1], work[row, 2], work[row, 3])
+                if r > off and depth > pd:
+                    # a set deeper than any before: its support along its deepest normal at once, which
+                    # bounds the depth from above at the set's own depth where the set is D's deepest part
+                    # (taken later, once the polytope had caught up with the set, a set short of that let
+                    # every face in reach be lifted to its depth and expanded all the same: kuka_link_4's
+                    # STP-STP overlaps took twice the scans, stop 94)
+                    pd = depth
+                    h = _support_inline(pair, u0, u1, u2, warm, work)
+                    if -h > lower:
+                        lower = -h
+                        keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], u0, u1, u2, core)
+                # a lift short of the depth's upper bound less the tolerance would only delay the face's
+                # expansion: such lifts are not taken
+                gap = tol_abs + tol_rel * abs(lower)
+                if r > off and r >= -lower - gap:
+                    set_certified(work, f, r)
+                    continue
+            if off >= 0.0:
+                upper = min(upper, -least)  # (only faces of offset >= 0 are set aside)
+                near = False
+            else:
+                d = _face_distance(work, iw, f)
+                if d < upper:
+                    upper = d
+                    near = True
+                    _near_witness(work, iw, f, size, out)
+            if bounds_closed(upper, lower, tol_abs, tol_rel):
+                closed = True
+                break
+            if it >= steps or nv >= EPA_MAX_VERTICES:
+                stop = STOP_ITERATIONS if it >= steps else STOP_VERTICES
+                break
+            it += 1
+            if cappable and it == CAPS_AFTER + 1:
+                caps = True
+                iw[EPA_IOFF + EPA_CAPS] = 1
+            row = at(EPA_ROW + EPA_PLANES + f)
+            h = _support_inline(pair, work[row, 0], work[row, 1], work[row, 2], warm, work)
+            if -h > lower:
+                lower = -h
+                if sides != 0:  # the support pair that bounds the depth: a lifted last face's witness
+                    keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], work[row, 0], work[row, 1],
+                              work[row, 2], _exact_side(sides))
+            if bounds_closed(upper, lower, tol_abs, tol_rel):
+                closed = True
+                break
+            w = work[EPA_ROW + EPA_TMP + 2]
+            size = max(size, abs(w[0]), abs(w[1]), abs(w[2]))
+            eps = VISIBLE_REL * size
+            # (a point above the face's plane cannot be a vertex already: the polytope is convex)
+            if h - work[row, 3] <= eps:
+                # nothing of D beyond this face: the bounds are as good as this precision allows
+                closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
+                stop = STOP_NO_PROGRESS
+                if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, stop):
                     lenient, blocked = True, 0
+                    _unblock_all(work, iw, top)
                     continue
                 break
-            least = min(off, _blocked_least(work, iw, top))
-        if sides != 0 and off > 0.0 and off >= -lower * (1.0 - CERT_WINDOW) and not tried(work, f) and \
-                may_certify(pair, sides, work, iw, f, first):
-            set_tried(work, f, True)
-            row = at(EPA_ROW + EPA_PLANES + f)
-            r, u0, u1, u2, depth, core = face_certificate(pair, sides, work, iw, f, first, work[row, 0],
-                                                          work[row, 1], work[row, 2], work[row, 3])
-            if r > off and depth > pd:
-                # a set deeper than any before: its support along its deepest normal at once, which
-                # bounds the depth from above at the set's own depth where the set is D's deepest part
-                # (taken later, once the polytope had caught up with the set, a set short of that let
-                # every face in reach be lifted to its depth and expanded all the same: kuka_link_4's
-                # STP-STP overlaps took twice the scans, stop 94)
-                pd = depth
-                h = _support_inline(pair, u0, u1, u2, warm, work)
-                if -h > lower:
-                    lower = -h
-                    keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], u0, u1, u2, core)
-            # a lift short of the depth's upper bound less the tolerance would only delay the face's
-            # expansion: such lifts are not taken
-            gap = tol_abs + tol_rel * abs(lower)
-            if r > off and r >= -lower - gap:
-                set_certified(work, f, r)
-                continue
-        if off >= 0.0:
-            upper = min(upper, -least)  # (only faces of offset >= 0 are set aside)
-            near = False
-        else:
-            d = _face_distance(work, iw, f)
-            if d < upper:
-                upper = d
-                near = True
-                _near_witness(work, iw, f, size, out)
-        if bounds_closed(upper, lower, tol_abs, tol_rel):
-            closed = True
+            _keep_support(work, iw, warm, nv)
+            if caps:
+                support_sphere(pair, work[row, 0], work[row, 1], work[row, 2], warm[0], warm[1],
+                               work, nv)
+            else:
+                clear_sphere(work, nv)
+            iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
+            stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
+            if stop != 0 and stop != STOP_FACE_SLOTS and lenient:
+                # the point lies within rounding of the planes of faces that do not see it (a nearly flat
+                # stretch of D): replace those too. Their corners off the horizon leave P's boundary, which
+                # passes below them: P shrinks, still lies in D, and its faces still bound the depth
+                iw[EPA_IOFF + EPA_CLOCK] += 1
+                stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, -LENIENT_REL * size, c0, c1, c2)
+            if stop != 0:
+                stalled = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
+                if not stalled and stop != STOP_FACE_SLOTS and off >= 0.0 and blocked < MAX_BLOCKED:
+                    # the polytope stays as it was: go on from the other faces, one of which may see
+                    # this support point from a better-conditioned side and replace the face
+                    _block(work, f)
+                    blocked += 1
+                    continue
+                if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, stop):
+                    lenient, blocked = True, 0
+                    _unblock_all(work, iw, top)
+                    continue
+                break
+            nv += 1
+            if caps:
+                lower = _exact_deepest(pair, nv - 1, lower, warm, work)
+        if closed or polished:
             break
-        if it >= steps or nv >= EPA_MAX_VERTICES:
-            stop = STOP_ITERATIONS if it >= steps else STOP_VERTICES
+        polished = True
+        if blocked > 0:
+            _unblock_all(work, iw, top)
+            blocked = 0
+        f, off = _least_face(work, iw, top)
+        if f < 0 or off < 0.0:
             break
-        it += 1
-        if cappable and it == CAPS_AFTER + 1:
-            caps = True
-            iw[EPA_IOFF + EPA_CAPS] = 1
         row = at(EPA_ROW + EPA_PLANES + f)
-        h = _support_inline(pair, work[row, 0], work[row, 1], work[row, 2], warm, work)
-        if -h > lower:
-            lower = -h
-            if sides != 0:  # the support pair that bounds the depth: a lifted last face's witness
-                keep_best(work, work[EPA_ROW + EPA_TMP], work[EPA_ROW + EPA_TMP + 1], work[row, 0], work[row, 1],
-                          work[row, 2], _exact_side(sides))
-        if bounds_closed(upper, lower, tol_abs, tol_rel):
-            closed = True
+        nv, top, added = _tie_partners(pair, ties, work[row, 0], work[row, 1], work[row, 2], nv, top,
+                                       VISIBLE_REL * size, c0, c1, c2, work, iw)
+        if added == 0:
             break
-        w = work[EPA_ROW + EPA_TMP + 2]
-        size = max(size, abs(w[0]), abs(w[1]), abs(w[2]))
-        eps = VISIBLE_REL * size
-        # (a point above the face's plane cannot be a vertex already: the polytope is convex)
-        if h - work[row, 3] <= eps:
-            # nothing of D beyond this face: the bounds are as good as this precision allows
-            closed = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
-            stop = STOP_NO_PROGRESS
-            if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, stop):
-                lenient, blocked = True, 0
-                _unblock_all(work, iw, top)
-                continue
-            break
-        _keep_support(work, iw, warm, nv)
-        if caps:
-            support_sphere(pair, work[row, 0], work[row, 1], work[row, 2], warm[0], warm[1],
-                           work, nv)
-        else:
-            clear_sphere(work, nv)
-        iw[EPA_IOFF + EPA_CLOCK] += 1  # stamps are unique across runs on the same polytope
-        stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
-        if stop != 0 and stop != STOP_FACE_SLOTS and lenient:
-            # the point lies within rounding of the planes of faces that do not see it (a nearly flat
-            # stretch of D): replace those too. Their corners off the horizon leave P's boundary, which
-            # passes below them: P shrinks, still lies in D, and its faces still bound the depth
-            iw[EPA_IOFF + EPA_CLOCK] += 1
-            stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, -LENIENT_REL * size, c0, c1, c2)
-        if stop != 0:
-            stalled = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
-            if not stalled and stop != STOP_FACE_SLOTS and off >= 0.0 and blocked < MAX_BLOCKED:
-                # the polytope stays as it was: go on from the other faces, one of which may see
-                # this support point from a better-conditioned side and replace the face
-                _block(work, f)
-                blocked += 1
-                continue
-            if _take_lenient(lenient, closed, off, upper, lower, tol_abs, blocked, stop):
-                lenient, blocked = True, 0
-                _unblock_all(work, iw, top)
-                continue
-            break
-        nv += 1
-        if caps:
-            lower = _exact_deepest(pair, nv - 1, lower, warm, work)
+        stop = STOP_CLOSED
     if not closed and (blocked > 0 or stop == STOP_HORIZON or stop == STOP_FAN_SLIVER or stop == STOP_FAN_INWARD):
         # an expansion that floating point cannot make (a support point on a horizon edge's line) is
         # a stall as much as a support point on the face: the same slack settles it, here or at the
