@@ -128,22 +128,27 @@ def test_reproducer_is_answered_right_now(path):
     assert not bad, f"{path.name}: spq is {case['verdict']} again ({case['detail']})"
 
 
+def _judged_about(name: str, n: int, scale: float, seed: int):
+    """A fixture's signed query at n poses of B about its own (rotation and translation perturbed with
+    normal noise of the given scale), judged against the depth oracle like a campaign's queries."""
+    from scipy.spatial.transform import Rotation
+
+    case = json.loads((FIXTURES / f"{name}.json").read_text())
+    rng = np.random.default_rng(seed)
+    pose_b = np.repeat(np.asarray(case["pose_b"], float)[None], n, axis=0)
+    pose_b[:, :3, :3] = Rotation.from_rotvec(rng.normal(size=(n, 3)) * scale).as_matrix() @ pose_b[:, :3, :3]
+    pose_b[:, :3, 3] += rng.normal(size=(n, 3)) * scale
+    pose_a = np.repeat(np.asarray(case["pose_a"], float)[None], n, axis=0)
+    return judge_case(case["family"], case["a"], case["b"], pose_a, pose_b, np.random.default_rng(0), {}, sample=1.0,
+                      modes=("signed",))
+
+
 def test_poses_about_a_ridge_reproducer_are_answered_right_now():
     """cse-signed-failed-4 (a boxy superellipsoid's straight edge swept by a tetrahedron's edge: the EPA's
     fans along that ridge of D face inwards) stands for a neighbourhood: before the EPA set such faces
     aside, every one of 4,000 poses within 1e-4 of it ended failed. Twelve of them, judged against the
     depth oracle like a campaign's queries, are answered right."""
-    from scipy.spatial.transform import Rotation
-
-    case = json.loads((FIXTURES / "cse-signed-failed-4.json").read_text())
-    rng = np.random.default_rng(4)
-    n = 12
-    pose_b = np.repeat(np.asarray(case["pose_b"], float)[None], n, axis=0)
-    pose_b[:, :3, :3] = Rotation.from_rotvec(rng.normal(size=(n, 3)) * 1e-4).as_matrix() @ pose_b[:, :3, :3]
-    pose_b[:, :3, 3] += rng.normal(size=(n, 3)) * 1e-4
-    pose_a = np.repeat(np.asarray(case["pose_a"], float)[None], n, axis=0)
-    result = judge_case(case["family"], case["a"], case["b"], pose_a, pose_b, np.random.default_rng(0), {}, sample=1.0,
-                        modes=("signed",))
+    result = _judged_about("cse-signed-failed-4", 12, 1e-4, 4)
     assert not result.bad, [(b.verdict, b.detail) for b in result.bad]
 
 
@@ -153,15 +158,5 @@ def test_poses_about_a_tied_edge_reproducer_get_bounds_the_depth_oracle_holds():
     before its tied-edge partners (spq.kernels.epa._tie_partners), 54 after (stop 126). The partners are
     points of D, so every bound stays certified: eight such poses, judged against the depth oracle like a
     campaign's queries, are none of them wrong (a failed one says so, with bounds that hold)."""
-    from scipy.spatial.transform import Rotation
-
-    case = json.loads((FIXTURES / "cse-signed-failed-14.json").read_text())
-    rng = np.random.default_rng(14)
-    n = 8
-    pose_b = np.repeat(np.asarray(case["pose_b"], float)[None], n, axis=0)
-    pose_b[:, :3, :3] = Rotation.from_rotvec(rng.normal(size=(n, 3)) * 1e-6).as_matrix() @ pose_b[:, :3, :3]
-    pose_b[:, :3, 3] += rng.normal(size=(n, 3)) * 1e-6
-    pose_a = np.repeat(np.asarray(case["pose_a"], float)[None], n, axis=0)
-    result = judge_case(case["family"], case["a"], case["b"], pose_a, pose_b, np.random.default_rng(0), {}, sample=1.0,
-                        modes=("signed",))
+    result = _judged_about("cse-signed-failed-14", 8, 1e-6, 14)
     assert not [b for b in result.bad if b.verdict != "failed"], [(b.verdict, b.detail) for b in result.bad]
