@@ -946,7 +946,7 @@ def _tied_vertices(f, e0, e1, e2, rel):
 
 
 @kernel
-def _tie_partners(pair, side, n0, n1, n2, nv, top, eps, c0, c1, c2, work, iw):
+def _tie_partners(pair, side, n, nv, top, eps, c, work, iw):
     """Where the polytope side's support along the unit normal n (A's frame) of P's least face ties
     between two vertices v and v' (an edge of the polytope faces the superellipsoid), every vertex of
     P that came from v gets a partner from v': the same superellipsoid point with v' for v, a point of D
@@ -956,8 +956,11 @@ def _tie_partners(pair, side, n0, n1, n2, nv, top, eps, c0, c1, c2, work, iw):
     point cannot place; the partners make faces across the strip, whose planes it can. Of 400 poses
     within 1e-6 m of fuzz case cse-signed-failed-14, 175 failed without them and 54 with them; the
     kind's other cases (12, 13) still fail where degenerate faces of one end refuse the fan from the
-    next support point (docs/notes/speed-45.md, stop 126). Returns (nv, top, partners added)."""
+    next support point (docs/notes/speed-45.md, stop 126). c: the run's interior point, eps: its visibility
+    threshold. Returns (nv, top, partners added)."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    n0, n1, n2 = n
+    c0, c1, c2 = c
     if side == 1:  # B's support is along -n, in B's frame
         e0 = -(R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2)
         e1 = -(R[0, 1] * n0 + R[1, 1] * n1 + R[2, 1] * n2)
@@ -1213,8 +1216,8 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
         if f < 0 or off < 0.0:
             break
         row = at(EPA_ROW + EPA_PLANES + f)
-        nv, top, added = _tie_partners(pair, ties, work[row, 0], work[row, 1], work[row, 2], nv, top,
-                                       VISIBLE_REL * size, c0, c1, c2, work, iw)
+        nv, top, added = _tie_partners(pair, ties, (work[row, 0], work[row, 1], work[row, 2]), nv, top,
+                                       VISIBLE_REL * size, (c0, c1, c2), work, iw)
         if added == 0:
             break
         stop = STOP_CLOSED
