@@ -390,7 +390,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--r", type=float, default=0.005, help="STP-BV small radius (m)")
     p.add_argument("--R", type=float, default=2.0, help="STP-BV big radius (m)")
     p.add_argument("--robot", default=None,
-                   help="also a robot scene's cold all-pairs sweep (a name of datasets.robots, e.g. jvrc1)")
+                   help="also a robot scene's cold all-pairs sweep and its coherent one along a smooth trajectory (a name "
+                        "of datasets.robots, e.g. jvrc1)")
     p.add_argument("--policies", nargs="+", default=["pch", "auto"], help="the robot scene's policies (default: pch auto)")
     p.add_argument("--configs", type=int, default=1000, help="the robot's random configurations (default 1000)")
     p.add_argument("--robot-block", type=int, default=50, dest="robot_block",
@@ -552,6 +553,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cse", type=_cse, default=CSE_FIT, help="the CSE-BV of CSE pairs, as bench table1's --cse")
     p.add_argument("--robot", default=None, help="a robot's cold all-pairs sweep instead of a pair (e.g. jvrc1)")
     p.add_argument("--policy", default="auto", help="the robot scene's policy (default auto)")
+    p.add_argument("--coherent", action="store_true",
+                   help="with --robot: its coherent sweep along a smooth trajectory of --configs steps (warm starts)")
     p.add_argument("--configs", type=int, default=1000, help="the robot's random configurations (default 1000)")
     p.add_argument("--seconds", type=float, default=10.0, help="time sampled (default 10 s)")
     p.add_argument("--frequency", type=int, default=4999, help="samples a second (default 4999)")

@@ -79,7 +79,7 @@ def _recentre(fP, c0, c1, c2, W, FI, k):
         _put_vertex(fP, int(FI[0, i]), c0, c1, c2, W, FI, i)
 
 
-@kernel
+@kernel(inline="hot")  # a robot scene's coherent sweep spends about a third of its time here (spq profile --coherent)
 def _centre_gjk(fP, iP, mP, c0, c1, c2, rad, k, s, tol, work):
     """GJK between the point c and the polytope (its frame) from the simplex of k vertex ids in
     work's FI rows (rows as _put_vertex's); the stop rule is the certificate's, on the distance

@@ -2,7 +2,8 @@
 
 Every hot-path change is judged by a same-process A/B (see the project's guide): the old and the new
 kernels on one link's random pose pairs, batched and per call, the overlapping poses also alone, and
-optionally a robot scene's cold all-pairs sweep over random configurations (each version's own Scene, as
+optionally a robot scene's cold all-pairs sweep over random configurations and its coherent one along a
+smooth trajectory (each version's own Scene, as
 ``spq bench robot`` times it); blocks of poses (or configurations) timed in turn
 (harness.suites.bench.timing, the two versions' order alternating), each version's least time per block
 summed. It also says whether the two versions' result rows
@@ -42,7 +43,7 @@ class Config:
     R: float = 2.0  # m: STP-BV big radius
     cse: str = "fit"  # the CSE-BV of the CSE pairs, as spq bench table1's --cse (harness.suites.table1.cse_spec)
     repo: str = "."  # the git checkout the revisions are read from
-    robot: str | None = None  # a robot of datasets.robots: its cold all-pairs sweep, per policy
+    robot: str | None = None  # a robot of datasets.robots: its cold and coherent all-pairs sweeps, per policy
     policies: list[str] = field(default_factory=lambda: ["pch", "auto"])  # the robot's scene policies
     configs: int = 1000  # random configurations of the robot's sweep (seed: ``seed``)
     robot_block: int = 50  # configurations per timed block (as spq bench robot)
@@ -175,14 +176,16 @@ def run(config: Config) -> Output:
                     for side, p in (("old", old), ("new", new))}
             rows.append(_row(kind, "per call", "all", n, _times(jobs, config, bar), None))
     if config.robot is not None:
-        qs = None
+        qs = trajectory = None
         for policy in config.policies:
             scenes = [_scene(v, config.robot, policy, config.r, config.R) for v in versions]
             if qs is None:
-                from harness.workloads.robot_poses import random_configurations
+                from harness.workloads.robot_poses import random_configurations, smooth_trajectory
 
                 qs = random_configurations(scenes[0].model, config.configs, config.seed)
+                trajectory = smooth_trajectory(scenes[0].model, config.configs, config.seed)
             rows.append(sweep_row(versions, scenes, qs, f"{config.robot} {policy}", config, bar))
+            rows.append(sweep_row(versions, scenes, trajectory, f"{config.robot} {policy}", config, bar, coherent=True))
     if bar is not None:
         bar.close()
     table = pd.DataFrame(rows)
@@ -208,7 +211,8 @@ def run(config: Config) -> Output:
     if config.robot:
         notes += (f" {config.robot} <policy>: the robot scene's cold sweep over all its pairs (each version's "
                   f"Scene.distances_many, unsigned, coherent=False) at {config.configs} random configurations "
-                  f"(seed {config.seed}) in blocks of {config.robot_block}; queries: configurations x pairs, "
+                  f"(seed {config.seed}), and its coherent sweep (warm starts) along a {config.configs}-step smooth "
+                  f"trajectory (seed {config.seed}), in blocks of {config.robot_block}; queries: configurations x pairs, "
                   "us per query: per pair; rows_differing: the pairs' raw result rows not equal bit for bit.")
     notes += (f" Each block timed {config.repeats} times, old and new in turn (their order alternating by block "
               "and round), each timed run just after an untimed one of the same version on the same block; a version's "
@@ -242,21 +246,23 @@ def sweep_rows_differing(versions, outs) -> int:
     return rows_differing(column[0], column[1])
 
 
-def sweep_row(versions, scenes, qs: np.ndarray, label: str, config: Config, bar) -> dict:
-    """The row of two versions' scenes (the same robot and policy) swept cold over configurations qs, each
-    into its own result array, allocated and touched before the timing (as spq bench robot's)."""
+def sweep_row(versions, scenes, qs: np.ndarray, label: str, config: Config, bar, coherent: bool = False) -> dict:
+    """The row of two versions' scenes (the same robot and policy) swept over configurations qs (cold, or
+    coherent: each pair warm-started from its last query, as along a trajectory), each into its own result
+    array, allocated and touched before the timing (as spq bench robot's)."""
     from harness.suites.robot.robot_bench import result_array
 
     outs = []
     for version, scene in zip(versions, scenes):
-        scene.distances_many(qs[:2], coherent=False)  # compiles, or loads the copy's cache
+        scene.reset()
+        scene.distances_many(qs[:2], coherent=coherent)  # compiles, or loads the copy's cache
         outs.append(result_array(len(qs), len(scene.pairs), version.kernels.gjk.OUT_SIZE))
-    jobs = {side: (lambda q, o, s=scene: s.distances_many(q, coherent=False, out=o), qs, out)
+    jobs = {side: (lambda q, o, s=scene: s.distances_many(q, coherent=coherent, out=o), qs, out)
             for side, scene, out in zip(("old", "new"), scenes, outs)}
     times = _times(jobs, config, bar, config.robot_block)
     pairs = len(scenes[0].pairs)
-    return _row(f"{label} ({pairs} pairs)", "cold sweep", "configurations", len(qs) * pairs, times,
-                (sweep_rows_differing(versions, outs), None))
+    return _row(f"{label} ({pairs} pairs)", "coherent sweep" if coherent else "cold sweep", "configurations",
+                len(qs) * pairs, times, (sweep_rows_differing(versions, outs), None))
 
 
 def _row(kind: str, mode: str, poses: str, n: int, times: dict, differing) -> dict:

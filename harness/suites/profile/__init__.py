@@ -43,6 +43,7 @@ class Config:
     R: float = 2.0  # m: STP-BV big radius
     cse: str = "fit"  # the CSE-BV of the CSE pairs, as spq bench table1's --cse (harness.suites.table1.cse_spec)
     robot: str | None = None  # a robot of datasets.robots: its cold all-pairs sweep instead of a pair
+    coherent: bool = False  # with a robot: its coherent sweep along the bench's smooth trajectory instead
     policy: str = "auto"
     configs: int = 1000
     seconds: float = 10.0  # sampled time
@@ -113,16 +114,21 @@ def _pair_job(config: Config):
 
 def _robot_job(config: Config):
     from harness.suites.robot.robot_bench import RobotBenchConfig, load_scene
-    from harness.workloads.robot_poses import random_configurations
+    from harness.workloads.robot_poses import random_configurations, smooth_trajectory
     from spq.kernels.gjk import OUT_SIZE
 
     scene = load_scene(RobotBenchConfig(robot=config.robot, r=config.r, R=config.R), config.policy)
-    qs = random_configurations(scene.model, config.configs, config.seed)
+    if config.coherent:  # as spq bench robot's coherent rows: each pair warm-starts from its last query
+        qs, sweep = smooth_trajectory(scene.model, config.configs, config.seed), "coherent all-pairs sweep"
+        where = f"a {len(qs)}-step smooth trajectory"
+    else:
+        qs, sweep = random_configurations(scene.model, config.configs, config.seed), "cold all-pairs sweep"
+        where = f"{len(qs)} random configurations"
     kind = "signed" if config.signed else "unsigned"
     out = np.empty((len(qs), len(scene.pairs), OUT_SIZE))  # as spq bench robot: no page faults of a new array
-    return ((lambda: scene.distances_many(qs, coherent=False, signed=config.signed, out=out)), len(qs) * len(scene.pairs),
-            f"{config.robot} {config.policy}, {kind}, cold all-pairs sweep (Scene.distances_many) over "
-            f"{len(qs)} random configurations")
+    return ((lambda: scene.distances_many(qs, coherent=config.coherent, signed=config.signed, out=out)),
+            len(qs) * len(scene.pairs), f"{config.robot} {config.policy}, {kind}, {sweep} (Scene.distances_many) over "
+            f"{where}")
 
 
 def area(symbol: str, obj: str) -> str:
