@@ -29,7 +29,8 @@ along a ridge of D, whose plane may pass near the origin while the triangle itse
 A run that would end short of the tolerance after such faces takes them back once and goes on
 leniently: a fan that cannot be made is tried again with the faces whose planes the point lies just
 below (LENIENT_REL) replaced too, on a nearly flat stretch of D where the point is within rounding
-of them. P then drops those faces' other corners from its boundary and is no longer exactly convex,
+of them, and if a fan face would still face inwards, with the faces across its horizon edge too, as
+deep as the point lies under them (_carve_inward, within CARVE_REL). P then drops those faces' other corners from its boundary and is no longer exactly convex,
 but it still lies in D (its boundary is a closed surface of D's points about the origin), so its
 faces still bound the depth. A run between a polytope and a superellipsoid that still ends short where
 the polytope's support ties over an edge takes that edge's other end for each of its vertices from one
@@ -135,6 +136,11 @@ MAX_BLOCKED = 8
 # polytope's size) below also replaced (see epa_run). A run that closes never takes it, so its
 # result does not depend on it.
 LENIENT_REL = 1e-9
+# A lenient expansion whose fan would still face inwards replaces, besides, the faces across the horizon
+# edges of the inward fan faces, as deep below as the point lies under them, within this (relative to
+# the polytope's size): see _carve_inward.
+CARVE_REL = 1e-7
+CARVE_TRIES = 8
 # A polytope's vertices whose support values along a direction lie within this (relative to its largest
 # coordinate) of the best tie there: see _tie_partners.
 TIE_REL = 1e-6
@@ -684,6 +690,44 @@ def _expand(work, iw, f0, wv, stamp, top, eps, c0, c1, c2):
     return 0, top
 
 
+@kernel
+def _carve_inward(work, iw, f0, wv, top, eps, size, c):
+    """A lenient expansion of face f0 to vertex wv refused because a fan face would face the interior
+    point c (STOP_FAN_INWARD), tried again with the faces across the horizon edges of those fan faces
+    replaced too: eps lowered to just below the deepest of those faces' heights of the point, while that
+    stays within CARVE_REL of the polytope's size. Along a ridge of D traced by two near-lines of support
+    points (a polytope's edge tied against a superellipsoid), degenerate faces of one line leave the
+    point just under a neighbour's plane, which the fan from the horizon then cuts across; taking that
+    neighbour in dents P by less than the point's depth under it. P still lies in D and its boundary is
+    still a closed surface of D's points about the origin, so its faces still bound the depth (as a
+    lenient expansion's, module docstring). Returns (stop, top) as _expand."""
+    c0, c1, c2 = c
+    w = work[_row(wv)]
+    stop = STOP_FAN_INWARD
+    for _ in range(CARVE_TRIES):
+        iw[EPA_IOFF + EPA_CLOCK] += 1
+        nh, nd = _horizon(work, iw, f0, w, iw[EPA_IOFF + EPA_CLOCK], eps)
+        _revive(iw, nd)
+        deepest = eps
+        for i in range(max(nh, 0)):
+            h = EPA_IOFF + EPA_HORIZON + 4 * i
+            code, n0, n1, n2, off = _plane_of(work, iw[h], iw[h + 1], wv, c0, c1, c2)
+            if code == PLANE_SLIVER:
+                code, n0, n1, n2, off = _sliver_plane(work, iw[h + 2], iw[h], iw[h + 1], wv, c0, c1, c2)
+            if code == PLANE_INWARD:
+                deepest = min(deepest, _height(work, iw[h + 2], w))
+        if not deepest < eps:
+            break
+        eps = deepest - NOISE_REL * size
+        if -eps > CARVE_REL * size:
+            break
+        iw[EPA_IOFF + EPA_CLOCK] += 1
+        stop, top = _expand(work, iw, f0, wv, iw[EPA_IOFF + EPA_CLOCK], top, eps, c0, c1, c2)
+        if stop != STOP_FAN_INWARD:
+            break
+    return stop, top
+
+
 @kernel(inline="always")
 def _least_face(work, iw, top):
     """The live face of least certified offset (spq.kernels.epa_caps), and that offset."""
@@ -1190,6 +1234,8 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
                 # passes below them: P shrinks, still lies in D, and its faces still bound the depth
                 iw[EPA_IOFF + EPA_CLOCK] += 1
                 stop, top = _expand(work, iw, f, nv, iw[EPA_IOFF + EPA_CLOCK], top, -LENIENT_REL * size, c0, c1, c2)
+                if stop == STOP_FAN_INWARD:
+                    stop, top = _carve_inward(work, iw, f, nv, top, -LENIENT_REL * size, size, (c0, c1, c2))
             if stop != 0:
                 stalled = off >= 0.0 and upper - lower <= STALL_SLACK * abs(upper) + tol_abs
                 if not stalled and stop != STOP_FACE_SLOTS and off >= 0.0 and blocked < MAX_BLOCKED:
