@@ -111,7 +111,8 @@ def test_sweep_rows_differing_compares_whole_rows_or_only_distances_across_layou
     assert ab.sweep_rows_differing([_stub_version(4), _stub_version(5)], [b, c]) == 1
 
 
-def test_sweep_row_times_both_scenes_on_the_same_configurations_and_counts_what_differs():
+@pytest.mark.parametrize("coherent", [False, True])
+def test_sweep_row_times_both_scenes_on_the_same_configurations_and_counts_what_differs(coherent):
     class StubScene:
         """distances_many writes each pair's row from the configuration; ``bias`` moves one pair."""
 
@@ -119,20 +120,27 @@ def test_sweep_row_times_both_scenes_on_the_same_configurations_and_counts_what_
             self.pairs = [(0, 1), (0, 2), (1, 2)]
             self.bias = bias
             self.seen = []
+            self.resets = 0
+
+        def reset(self):
+            self.resets += 1
 
         def distances_many(self, qs, coherent=False, out=None):
-            assert coherent is False
+            assert coherent is want
             out = np.empty((len(qs), len(self.pairs), 4)) if out is None else out
             out[:] = qs.sum(axis=1)[:, None, None]
             out[:, 2, 0] += self.bias
             self.seen.append(np.array(qs))
             return out
 
+    want = coherent
     qs = np.arange(20.0).reshape(10, 2)
     old, new = StubScene(0.0), StubScene(1.0)
     config = ab.Config(repeats=2, robot_block=4)
-    row = ab.sweep_row([_stub_version(4), _stub_version(4)], [old, new], qs, "bot pch", config, None)
-    assert row["pair"] == "bot pch (3 pairs)" and row["mode"] == "cold sweep" and row["queries"] == 30
+    row = ab.sweep_row([_stub_version(4), _stub_version(4)], [old, new], qs, "bot pch", config, None, coherent=coherent)
+    assert row["pair"] == "bot pch (3 pairs)" and row["queries"] == 30
+    assert row["mode"] == ("coherent sweep" if coherent else "cold sweep")
+    assert old.resets == new.resets == 1  # each version's warm starts forgotten before its first call
     assert row["rows_differing"] == 10  # the third pair of every configuration
     assert row["old_s"] > 0 and row["new_s"] > 0
     timed = [q for q in old.seen if len(q) != 2]  # (the first call, on two configurations, compiles)

@@ -133,3 +133,37 @@ def test_annotated_lines_give_each_sampled_instruction_its_share(tmp_path):
     first_line, second_line = lines[0].split(), lines[1].split()
     assert first_line[:2] == ["60.00", "0"] and second_line[:2] == ["20.00", f"{second:x}"]
     assert " ".join(first_line[2:]) == listing[symbol.offset]
+
+
+@pytest.mark.parametrize("coherent", [False, True])
+def test_a_robots_job_sweeps_random_configurations_cold_or_the_benchs_trajectory_coherently(coherent, monkeypatch):
+    from harness.suites import profile
+    from harness.workloads.robot_poses import random_configurations, smooth_trajectory
+
+    calls = []
+
+    class StubScene:
+        model = object()
+        pairs = [(0, 1), (0, 2)]
+
+        def distances_many(self, qs, coherent=False, signed=False, out=None):
+            calls.append((qs, coherent, signed, out.shape))
+
+    monkeypatch.setattr("harness.suites.robot.robot_bench.load_scene", lambda config, policy: StubScene())
+    want = {}
+
+    def poses(kind):
+        def make(model, n, seed):
+            want[kind] = np.full((n, 3), float(seed))
+            return want[kind]
+        return make
+
+    monkeypatch.setattr("harness.workloads.robot_poses.random_configurations", poses("random"))
+    monkeypatch.setattr("harness.workloads.robot_poses.smooth_trajectory", poses("trajectory"))
+    job, queries, what = profile._robot_job(profile.Config(robot="jvrc1", coherent=coherent, configs=7, seed=3))
+    job()
+    (qs, got_coherent, signed, shape), = calls
+    assert got_coherent is coherent and signed is True and shape[:2] == (7, 2) and queries == 14
+    assert qs is want["trajectory" if coherent else "random"]
+    assert ("coherent all-pairs sweep" in what and "7-step smooth trajectory" in what) if coherent else \
+        ("cold all-pairs sweep" in what and "7 random configurations" in what)
