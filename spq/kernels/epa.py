@@ -30,12 +30,12 @@ A run that would end short of the tolerance after such faces takes them back onc
 leniently: a fan that cannot be made is tried again with the faces whose planes the point lies just
 below (LENIENT_REL) replaced too, on a nearly flat stretch of D where the point is within rounding
 of them, and if a fan face would still face inwards, with the faces across its horizon edge too, as
-deep as the point lies under them (_carve_inward, within CARVE_REL). P then drops those faces' other corners from its boundary and is no longer exactly convex,
-but it still lies in D (its boundary is a closed surface of D's points about the origin), so its
-faces still bound the depth. A run between a polytope and a superellipsoid that still ends short where
-the polytope's support ties over an edge takes that edge's other end for each of its vertices from one
-end (_tie_partners) and goes on once. If the bounds do not meet the tolerance in the end, the caller
-reports them with status FAILED.
+deep as the point lies under them (_carve_inward, within CARVE_REL). P then drops those faces' other
+corners from its boundary and is no longer exactly convex, but it still lies in D (its boundary is a
+closed surface of D's points about the origin), so its faces still bound the depth. A run between a
+polytope and a superellipsoid that still ends short where the polytope's support ties over an edge
+takes that edge's other end for each of its vertices from one end (_tie_partners) and goes on once.
+If the bounds do not meet the tolerance in the end, the caller reports them with status FAILED.
 
 Witness points: on the face of least offset, the barycentric coordinates of the origin's projection
 combine its corners' support points of A and of B, so that point_b - point_a = sd * normal and both
