@@ -172,3 +172,13 @@ def test_poses_about_a_degenerate_strip_reproducer_are_answered_right_now():
     oracle, are all answered right."""
     result = _judged_about("cse-signed-failed-13", 8, 1e-6, 13)
     assert not result.bad, [(b.verdict, b.detail) for b in result.bad]
+
+
+def test_poses_about_a_nearly_round_reproducer_are_answered_right_now():
+    """stp-min-R-signed-failed-7 (an STP-BV near its least R holding a thin boxy superellipsoid 1.35 m deep:
+    D is nearly a sphere piece about a point millimetres from the origin, and the EPA ran out of vertices)
+    stands for a neighbourhood whose every pose within 1e-6 failed until such a result was settled from the
+    STP-BV's set of centres by point queries against the other body (spq.kernels.ball_hull_depth, stop
+    128). Eight such poses, judged against the depth oracle, are all answered right."""
+    result = _judged_about("stp-min-R-signed-failed-7", 8, 1e-6, 7)
+    assert not result.bad, [(b.verdict, b.detail) for b in result.bad]

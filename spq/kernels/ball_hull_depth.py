@@ -30,14 +30,38 @@ nearly parallel, as they are near the answer). Along a unit d with d = U^T mu (U
 the error is smaller: d.(x* - x) = -mu.r with r = U x - h the residuals, which is the bound used
 (_error_along) for the farthest vertex's norm, |x*| <= |x| + |mu.r| + E^2 / (2 |x|), and for which
 side of a cut a vertex lies on.
+
+One ball hull against any other convex body Y (a polytope, a superellipsoid) is the same bound with
+another objective: with A the ball hull, h_A(n) = R - h_Q(-n), so
+
+    sd = max over c in Q of sd_Y(c) - R,
+
+sd_Y the signed distance of a point to Y, convex and 1-Lipschitz (with B the ball hull, Q is B's set of
+centres in A's frame and Y is A). An STP-BV near its least R holding a small body deep inside (the fuzz
+reproducer stp-min-R-signed-failed-7) makes D nearly a sphere piece about a point a few millimetres from
+the origin, where the EPA runs out of vertices; over Q, millimetres wide and nearly polyhedral, sd_Y is
+nearly linear and the cuts close in a few steps. Each vertex x of P is bounded by a point query (a plain
+descent between x and Y): sd_Y(x) <= |x - y| for the point y of Y it ends on, and the cut is made along
+that query's normal g = (x - y) / |x - y|, where the support of Q bounds max sd_Y from below by
+h_Q(g) - h_Y(g) = R - h_D(+-g). A vertex's own error moves sd_Y by at most |g.(x* - x)| + E^2 / (2 sd_Y)
+(sd_Y curves at most as 1 / sd_Y outside Y), the norm's bound again.
 """
 
 from __future__ import annotations
 
 import math
 
-from spq.kernels.epa_layout import EPA_ALIVE, EPA_CORNERS, EPA_DEAD, EPA_MAX_VERTICES, EPA_PA, EPA_TMP, EPA_W
-from spq.kernels.gjk import EPA_IOFF, EPA_ROW, minkowski_support
+from spq.kernels.epa_layout import EPA_ALIVE, EPA_CORNERS, EPA_DEAD, EPA_MAX_VERTICES, EPA_PA, EPA_PB, EPA_TMP, EPA_W
+from spq.kernels.gjk import (
+    DESCENT_ROWS,
+    EPA_IOFF,
+    EPA_ROW,
+    OVERLAPPING,
+    WARM_SIZE,
+    clear_warm,
+    descend,
+    minkowski_support,
+)
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import POINT, STP
 from spq.kernels.stp_support import F_BIG_R
@@ -48,6 +72,9 @@ ROUNDING = 1e-14  # relative: rounding of a support value (a few dozen ulps of t
 EPS = 2.0 ** -52
 CRAMER_ERR = 64.0 * EPS  # relative error bound of a vertex from three planes (Cramer's rule)
 BH_OK, BH_NOT_BALLS, BH_DEGENERATE, BH_BUDGET = 0, 1, 2, 3
+# what is bounded: E = Q_B - Q_A (both sides ball hulls), or one side's Q against the other body
+BOTH_BALLS, BALL_A, BALL_B, NO_BALLS = 0, 1, 2, 3
+POINT_QUERY_ITERATIONS = 256  # a point's descent against a curved body closes in a few dozen
 
 
 @kernel(inline="always")
@@ -59,6 +86,14 @@ def is_ball_hull(kind):
 @kernel(inline="always")
 def ball_radius(kind, f):
     return f[F_BIG_R] if kind == STP else 0.0
+
+
+@kernel(inline="always")
+def ball_sides(kA, kB):
+    """Which sides are ball hulls: BOTH_BALLS, BALL_A, BALL_B or NO_BALLS."""
+    if is_ball_hull(kA):
+        return BOTH_BALLS if is_ball_hull(kB) else BALL_A
+    return BALL_B if is_ball_hull(kB) else NO_BALLS
 
 
 @kernel
@@ -74,6 +109,73 @@ def _centre_support(pair, S, u0, u1, u2, warm, work):
     scale = abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2])
     h = S * nu - hd
     return h + ROUNDING * (S + scale) * nu, h
+
+
+@kernel
+def _cut_support(pair, sides, S, u0, u1, u2, warm, work):
+    """Along unit u: (the cut's offset, the support of the set cut, loosened by its rounding; a lower
+    bound on the objective's max; the unit normal d along which sd >= that bound - S, as -h_D(d)).
+    BOTH_BALLS: the set is E, the objective |e|, both h_E(u). BALL_A: the set is Q_A, the objective
+    sd_B, whose max is at least h_Q(u) - h_B(u) = S - h_D(-u); BALL_B: Q_B and sd_A, S - h_D(u)."""
+    if sides == BOTH_BALLS:
+        hl, h = _centre_support(pair, S, u0, u1, u2, warm, work)
+        return hl, h, u0, u1, u2
+    pa = work[EPA_ROW + EPA_TMP]
+    pb = work[EPA_ROW + EPA_TMP + 1]
+    tmp = work[EPA_ROW + EPA_TMP + 2]
+    s = -1.0 if sides == BALL_A else 1.0
+    minkowski_support(pair, s * u0, s * u1, s * u2, warm, pa, pb, tmp)
+    ua = u0 * pa[0] + u1 * pa[1] + u2 * pa[2]
+    ub = u0 * pb[0] + u1 * pb[1] + u2 * pb[2]
+    hq, hy = (S + ua, ub) if sides == BALL_A else (S + ub, ua)
+    scale = abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2])
+    return hq + ROUNDING * (S + scale), hq - hy, s * u0, s * u1, s * u2
+
+
+@kernel
+def _point_query(pair, sides, v, tol_abs, tol_rel, work, iw):
+    """For vertex v of P (BALL_A or BALL_B): an upper bound on the objective sd_Y at the exact vertex, and
+    the unit normal g of Y's boundary towards it (its gradient), from a plain descent between the point
+    and Y; kept in the vertex's EPA_PB row, computed once. A point inside Y is bounded by its error
+    alone (sd_Y <= 0), its normal set to zero: centre_set_bounds then gives up."""
+    prow = EPA_ROW + EPA_PB + v
+    if work[prow, 3] == work[prow, 3]:
+        return work[prow, 3]
+    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
+    row = EPA_ROW + EPA_PA + v
+    x0, x1, x2, err = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
+    g0, g1, g2 = work[prow, 0], work[prow, 1], work[prow, 2]  # the cut's normal that made v: a start
+    shift = work[DESCENT_ROWS, 0:3]
+    start = work[DESCENT_ROWS + 1, 0:3]
+    warm = iw[WARM_SIZE:EPA_IOFF]
+    clear_warm(warm)
+    s = 1.0 if sides == BALL_A else -1.0  # the descent's closest point is s |x - y| g
+    start[0], start[1], start[2] = -s * g0, -s * g1, -s * g2
+    if sides == BALL_A:  # the point at A's origin shifted by x: B moves by -x
+        shift[0], shift[1], shift[2] = t[0] - x0, t[1] - x1, t[2] - x2
+        sub = (POINT, 0.0, fA, iA, kB, 0.0, fB, iB, R, shift)
+    else:
+        shift[0], shift[1], shift[2] = x0, x1, x2
+        sub = (kA, 0.0, fA, iA, POINT, 0.0, fB, iB, R, shift)
+    status, k, v0, v1, v2, vv, lower, it = descend(sub, (tol_abs, tol_rel, POINT_QUERY_ITERATIONS), start, warm, work)
+    # (any point of Y bounds sd_Y from above, so a descent stopped short still gives a valid bound)
+    scale = abs(x0) + abs(x1) + abs(x2) + abs(t[0]) + abs(t[1]) + abs(t[2])
+    if status == OVERLAPPING or not vv > 0.0:
+        # inside Y: sd_Y <= 0 there, but how far below is not known; a zero normal says so
+        g0 = g1 = g2 = 0.0
+        bound = err + ROUNDING * scale
+    else:
+        upper = math.sqrt(vv)
+        g0, g1, g2 = s * v0 / upper, s * v1 / upper, s * v2 / upper
+        if upper > err:
+            # y, the descent's point of Y, has x - y = upper g: sd_Y(x*) <= |x* - y| <= upper + |g.(x* - x)|
+            # + |x* - x|^2 / (2 upper)
+            bound = upper + _error_along(work, iw, v, g0, g1, g2) + err * err / (2.0 * upper)
+        else:
+            bound = upper + err
+        bound = bound * (1.0 + 4.0 * EPS) + ROUNDING * (upper + scale)
+    work[prow, 0], work[prow, 1], work[prow, 2], work[prow, 3] = g0, g1, g2, bound
+    return bound
 
 
 @kernel(inline="always")
@@ -136,6 +238,9 @@ def _set_vertex(work, iw, v, p, q, r):
         return False
     row = EPA_ROW + EPA_PA + v
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = y0, y1, y2, err
+    # its point query's row (one ball hull): not run yet; the normal of its last plane, a start for it
+    row = EPA_ROW + EPA_PB + v
+    work[row, 0], work[row, 1], work[row, 2], work[row, 3] = c0, c1, c2, math.nan
     k = EPA_IOFF + EPA_CORNERS + 3 * v
     iw[k], iw[k + 1], iw[k + 2] = p, q, r
     iw[EPA_IOFF + EPA_ALIVE + v] = 1
@@ -195,30 +300,40 @@ def _has_plane(iw, v, p):
 
 
 @kernel
+def _vertex_bound(pair, sides, work, iw, v, tol_abs, tol_rel):
+    """An upper bound on the objective at vertex v of P (exact, not as computed)."""
+    if sides == BOTH_BALLS:
+        return _norm_bound(work, iw, v)
+    return _point_query(pair, sides, v, tol_abs, tol_rel, work, iw)
+
+
+@kernel
 def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
-    """Bounds on the signed distance of two ball-hull cores (A's frame, margins not included) from
-    their sets of centres (module docstring).
+    """Bounds on the signed distance of two cores (A's frame, margins not included), one of them at least
+    a ball hull, from its set of centres (module docstring).
 
     Returns (code, lower, upper, u0, u1, u2, cuts): code BH_OK when lower <= sd <= upper hold and met
     the tolerance (the stopping rule of spq.kernels.epa.bounds_closed), u the unit normal along which
-    sd = lower is reached (its supports are the witness points); otherwise why not. Uses the EPA's
-    scratch rows: call it after the EPA, never during.
+    sd >= lower is reached as -h_D(u) (its supports are the witness points); otherwise why not. Uses the
+    EPA's scratch rows and the descent's: call it after the EPA, never during.
     """
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    if not (is_ball_hull(kA) and is_ball_hull(kB)):
+    sides = ball_sides(kA, kB)
+    if sides == NO_BALLS:
         return BH_NOT_BALLS, -math.inf, math.inf, 1.0, 0.0, 0.0, 0
-    S = ball_radius(kA, fA) + ball_radius(kB, fB)
-    lower_m = -math.inf  # max |e| >= lower_m
+    S = (ball_radius(kA, fA) if sides != BALL_B else 0.0) + (ball_radius(kB, fB) if sides != BALL_A else 0.0)
+    tol_point = (0.25 * tol_abs, 0.25 * tol_rel)  # a point query's share of the tolerance
+    lower_m = -math.inf  # the objective's max >= lower_m
     b0, b1, b2 = 1.0, 0.0, 0.0
-    # the box of E: planes +-x, +-y, +-z as planes 0..5
+    # the box of the set: planes +-x, +-y, +-z as planes 0..5
     for axis in range(3):
         for side in range(2):
             p = 2 * axis + side
             s = 1.0 if side == 0 else -1.0
             u0, u1, u2 = (s if axis == 0 else 0.0), (s if axis == 1 else 0.0), (s if axis == 2 else 0.0)
-            hl, h = _centre_support(pair, S, u0, u1, u2, warm, work)
+            hl, h, d0, d1, d2 = _cut_support(pair, sides, S, u0, u1, u2, warm, work)
             if h > lower_m:
-                lower_m, b0, b1, b2 = h, u0, u1, u2
+                lower_m, b0, b1, b2 = h, d0, d1, d2
             row = EPA_ROW + EPA_W + p
             work[row, 0], work[row, 1], work[row, 2], work[row, 3] = u0, u1, u2, hl
     nv = 0
@@ -231,7 +346,7 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
     n_planes = 6
     cuts = 0
     while True:
-        # the farthest vertex of P, its norm with its error bound: max |e| <= upper_m
+        # the farthest vertex of P, its objective with its error bound: max <= upper_m
         far = -1
         upper_m = -math.inf
         for v in range(nv):
@@ -239,9 +354,10 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
                 continue
             row = EPA_ROW + EPA_PA + v
             y0, y1, y2 = work[row, 0], work[row, 1], work[row, 2]
-            if math.sqrt(y0 * y0 + y1 * y1 + y2 * y2) * (1.0 + 4.0 * EPS) + work[row, 3] <= upper_m:
+            if sides == BOTH_BALLS and math.sqrt(y0 * y0 + y1 * y1 + y2 * y2) * (1.0 + 4.0 * EPS) + work[
+                    row, 3] <= upper_m:
                 continue  # cannot beat the farthest so far even with its whole error
-            r = _norm_bound(work, iw, v)
+            r = _vertex_bound(pair, sides, work, iw, v, tol_point[0], tol_point[1])
             if r > upper_m:
                 upper_m, far = r, v
         if far < 0:
@@ -252,17 +368,25 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
             return BH_BUDGET, lower_m - S, upper_m - S, b0, b1, b2, cuts
         row = EPA_ROW + EPA_PA + far
         y0, y1, y2 = work[row, 0], work[row, 1], work[row, 2]
-        yn = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
-        if not yn > 0.0:
-            return BH_DEGENERATE, lower_m - S, upper_m - S, b0, b1, b2, cuts
-        u0, u1, u2 = y0 / yn, y1 / yn, y2 / yn
-        hl, h = _centre_support(pair, S, u0, u1, u2, warm, work)
+        if sides == BOTH_BALLS:  # along the farthest vertex: the norm's gradient
+            yn = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+            if not yn > 0.0:
+                return BH_DEGENERATE, lower_m - S, upper_m - S, b0, b1, b2, cuts
+            u0, u1, u2 = y0 / yn, y1 / yn, y2 / yn
+        else:  # along Y's normal at the farthest vertex: sd_Y's gradient
+            grow = EPA_ROW + EPA_PB + far
+            u0, u1, u2 = work[grow, 0], work[grow, 1], work[grow, 2]
+            if u0 == 0.0 and u1 == 0.0 and u2 == 0.0:
+                # the farthest vertex lies inside Y, so all of Q may: depths inside Y are not bounded here
+                return BH_DEGENERATE, lower_m - S, upper_m - S, b0, b1, b2, cuts
+            yn = u0 * y0 + u1 * y1 + u2 * y2
+        hl, h, d0, d1, d2 = _cut_support(pair, sides, S, u0, u1, u2, warm, work)
         if h > lower_m:
-            lower_m, b0, b1, b2 = h, u0, u1, u2
+            lower_m, b0, b1, b2 = h, d0, d1, d2
             if _closed(upper_m - S, lower_m - S, tol_abs, tol_rel):
                 return BH_OK, lower_m - S, upper_m - S, b0, b1, b2, cuts
         # loosen the cut past every vertex it would pass within that vertex's error of (it stays a
-        # plane holding E), so each vertex is clearly kept or clearly cut off
+        # plane holding the set), so each vertex is clearly kept or clearly cut off
         loosened = True
         while loosened:
             loosened = False
@@ -353,6 +477,7 @@ def _cut(work, iw, nv, p, u0, u1, u2, h):
             last = top - 1
             for c in range(4):
                 work[EPA_ROW + EPA_PA + free, c] = work[EPA_ROW + EPA_PA + last, c]
+                work[EPA_ROW + EPA_PB + free, c] = work[EPA_ROW + EPA_PB + last, c]
             for c in range(3):
                 iw[EPA_IOFF + EPA_CORNERS + 3 * free + c] = iw[EPA_IOFF + EPA_CORNERS + 3 * last + c]
             iw[EPA_IOFF + EPA_ALIVE + free] = 1

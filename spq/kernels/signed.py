@@ -191,23 +191,25 @@ def signed_finish(pair, tol, status, k, vv, lower, it,
 
 @kernel
 def settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out):
-    """A failed result between two ball hulls (STP-BVs, spheres: cores, A's frame) settled from their
-    sets of centres where those bound sd to the tolerance (spq.kernels.ball_hull_depth); any other
-    result stays as it is."""
+    """A failed result where a side is a ball hull (an STP-BV, a sphere: cores, A's frame) settled from
+    its set of centres where that bounds sd to the tolerance (spq.kernels.ball_hull_depth: against the
+    other's set of centres, or against the other body by point queries); any other result stays as it
+    is."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    if out[OUT_STATUS] != FAILED or not (is_ball_hull(kA) and is_ball_hull(kB)):
+    if out[OUT_STATUS] != FAILED or not (is_ball_hull(kA) or is_ball_hull(kB)):
         return
     code, low, up, u0, u1, u2, cuts = centre_set_bounds(pair, tol_abs, tol_rel, warm, work,
                                                         iwork)
     if code != BH_OK:
         return
+    # the lower bound is -h_D(u), reached along the normal u by its supports, the witness points (a
+    # failed EPA's own lower bound need not be reached along its normal, its least face's)
     upper = min(up, out[OUT_UPPER])
-    lower = max(low, out[OUT_LOWER])
-    if not bounds_closed(upper, lower, tol_abs, tol_rel):
+    if not bounds_closed(upper, low, tol_abs, tol_rel):
         return
     out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = u0, u1, u2
     supports_as_witnesses(pair, warm, work, out)
-    set_result(upper, lower, out[OUT_ITERATIONS] + cuts, tol_abs, out)
+    set_result(upper, low, out[OUT_ITERATIONS] + cuts, tol_abs, out)
 
 
 SEARCH_FIRST_STEP = 1e-4  # rad: the search's first step about the normal
