@@ -41,10 +41,11 @@ centres in A's frame and Y is A). An STP-BV near its least R holding a small bod
 reproducer stp-min-R-signed-failed-7) makes D nearly a sphere piece about a point a few millimetres from
 the origin, where the EPA runs out of vertices; over Q, millimetres wide and nearly polyhedral, sd_Y is
 nearly linear and the cuts close in a few steps. Each vertex x of P is bounded by a point query (a plain
-descent between x and Y): sd_Y(x) <= |x - y| for the point y of Y it ends on, and the cut is made along
-that query's normal g = (x - y) / |x - y|, where the support of Q bounds max sd_Y from below by
-h_Q(g) - h_Y(g) = R - h_D(+-g). A vertex's own error moves sd_Y by at most |g.(x* - x)| + E^2 / (2 sd_Y)
-(sd_Y curves at most as 1 / sd_Y outside Y), the norm's bound again.
+descent between x and Y): for the point y of Y it ends on, g = (x - y) / |x - y| and the vertex's error
+bound E, sd_Y(x*) <= |x* - y| <= |x - y| + |g.(x* - x)| + E^2 / (2 |x - y|), the norm's bound again (a
+descent stopped short still gives a valid bound: y is a point of Y). The cut is made along g, where the
+support of Q bounds max sd_Y from below by h_Q(g) - h_Y(g) = R - h_D(+-g). A farthest vertex inside Y
+ends it: how far inside is not known there.
 """
 
 from __future__ import annotations
