@@ -46,17 +46,32 @@ bound E, sd_Y(x*) <= |x* - y| <= |x - y| + |g.(x* - x)| + E^2 / (2 |x - y|), the
 descent stopped short still gives a valid bound: y is a point of Y). The cut is made along g, where the
 support of Q bounds max sd_Y from below by h_Q(g) - h_Y(g) = R - h_D(+-g). A farthest vertex inside Y
 ends it: how far inside is not known there.
+
+The EPA tries these bounds once midway through a run with a ball hull on a side (spq.kernels.epa.CENTRES_AFTER,
+with fewer cuts), not only after a run that failed: P lives in the upper halves of the EPA's blocks, so the run
+goes on from its own polytope where they do not close.
 """
 
 from __future__ import annotations
 
 import math
 
-from spq.kernels.epa_layout import EPA_ALIVE, EPA_CORNERS, EPA_DEAD, EPA_MAX_VERTICES, EPA_PA, EPA_PB, EPA_TMP, EPA_W
+from spq.kernels.epa_layout import (
+    EPA_ALIVE,
+    EPA_CORNERS,
+    EPA_DEAD,
+    EPA_MAX_FACES,
+    EPA_MAX_VERTICES,
+    EPA_PA,
+    EPA_PB,
+    EPA_TMP,
+    EPA_W,
+)
 from spq.kernels.gjk import (
     DESCENT_ROWS,
     EPA_IOFF,
     EPA_ROW,
+    OUT_NORMAL,
     OVERLAPPING,
     WARM_SIZE,
     clear_warm,
@@ -64,11 +79,25 @@ from spq.kernels.gjk import (
     minkowski_support,
 )
 from spq.kernels.jit import kernel
-from spq.kernels.kinds import POINT, STP
-from spq.kernels.stp_support import F_BIG_R
+from spq.kernels.kinds import POINT, STP, STP_CORE
+from spq.kernels.signed_out import bounds_closed, set_result, supports_as_witnesses
+from spq.kernels.stp_support import F_BIG_R, F_R
 
 MAX_CUTS = 600  # planes of P beyond the first six; each adds at most a few vertices
-MAX_VERTICES = EPA_MAX_VERTICES  # rows of the EPA's point blocks reused for P's vertices
+# P lives in the upper half of the EPA's vertex blocks (its planes in the w rows, its vertices in the
+# rows of the points of A and of B) and in the int entries of the upper half of its face slots, so
+# that a run of the EPA whose polytope still fits the lower halves keeps it through an attempt here
+# (spq.kernels.epa.epa_run tries the centres once, after CENTRES_AFTER expansions)
+SLOT0 = EPA_MAX_VERTICES // 2  # P's first vertex and plane slot in the EPA's vertex blocks
+FACE0 = EPA_MAX_FACES // 2  # P's first slot in the EPA's per-face int blocks
+MAX_VERTICES = EPA_MAX_VERTICES - SLOT0  # P's vertices
+MAX_PLANES = EPA_MAX_VERTICES - SLOT0  # P's planes
+PLANE_ROW = EPA_ROW + EPA_W + SLOT0
+PA_ROW = EPA_ROW + EPA_PA + SLOT0  # a vertex: its point and error bound
+PB_ROW = EPA_ROW + EPA_PB + SLOT0  # a vertex: its point query's normal and bound
+CORNERS = EPA_IOFF + EPA_CORNERS + 3 * FACE0  # a vertex: its three planes
+ALIVE = EPA_IOFF + EPA_ALIVE + FACE0
+DEAD = EPA_IOFF + EPA_DEAD  # scratch of a cut (an EPA step's scratch too)
 ROUNDING = 1e-14  # relative: rounding of a support value (a few dozen ulps of the bodies' scale)
 EPS = 2.0 ** -52
 CRAMER_ERR = 64.0 * EPS  # relative error bound of a vertex from three planes (Cramer's rule)
@@ -80,13 +109,16 @@ POINT_QUERY_ITERATIONS = 256  # a point's descent against a curved body closes i
 
 @kernel(inline="always")
 def is_ball_hull(kind):
-    """Whether a core's support is R v plus a support of a convex set of centres (STP-BV, point)."""
-    return kind == STP or kind == POINT
+    """Whether a core's support is R v plus a support of a convex set of centres (an STP-BV, its core:
+    the ball hull at R - r, a point)."""
+    return kind == STP or kind == STP_CORE or kind == POINT
 
 
 @kernel(inline="always")
 def ball_radius(kind, f):
-    return f[F_BIG_R] if kind == STP else 0.0
+    if kind == STP:
+        return f[F_BIG_R]
+    return f[F_BIG_R] - f[F_R] if kind == STP_CORE else 0.0
 
 
 @kernel(inline="always")
@@ -139,11 +171,11 @@ def _point_query(pair, sides, v, tol_abs, tol_rel, work, iw):
     the unit normal g of Y's boundary towards it (its gradient), from a plain descent between the point
     and Y; kept in the vertex's EPA_PB row, computed once. A point inside Y is bounded by its error
     alone (sd_Y <= 0), its normal set to zero: centre_set_bounds then gives up."""
-    prow = EPA_ROW + EPA_PB + v
+    prow = PB_ROW + v
     if work[prow, 3] == work[prow, 3]:
         return work[prow, 3]
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    row = EPA_ROW + EPA_PA + v
+    row = PA_ROW + v
     x0, x1, x2, err = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
     g0, g1, g2 = work[prow, 0], work[prow, 1], work[prow, 2]  # the cut's normal that made v: a start
     shift = work[DESCENT_ROWS, 0:3]
@@ -181,7 +213,7 @@ def _point_query(pair, sides, v, tol_abs, tol_rel, work, iw):
 
 @kernel(inline="always")
 def _plane(work, p):
-    row = EPA_ROW + EPA_W + p
+    row = PLANE_ROW + p
     return work[row, 0], work[row, 1], work[row, 2], work[row, 3]
 
 
@@ -237,14 +269,14 @@ def _set_vertex(work, iw, v, p, q, r):
     err *= 1.0 + 16.0 * EPS
     if not err < math.inf:
         return False
-    row = EPA_ROW + EPA_PA + v
+    row = PA_ROW + v
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = y0, y1, y2, err
     # its point query's row (one ball hull): not run yet; the normal of its last plane, a start for it
-    row = EPA_ROW + EPA_PB + v
+    row = PB_ROW + v
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = c0, c1, c2, math.nan
-    k = EPA_IOFF + EPA_CORNERS + 3 * v
+    k = CORNERS + 3 * v
     iw[k], iw[k + 1], iw[k + 2] = p, q, r
-    iw[EPA_IOFF + EPA_ALIVE + v] = 1
+    iw[ALIVE + v] = 1
     return True
 
 
@@ -252,10 +284,10 @@ def _set_vertex(work, iw, v, p, q, r):
 def _error_along(work, iw, v, d0, d1, d2):
     """A bound on |d.(x* - x)| for vertex v (x computed, x* exact) and unit d: from the residuals of
     its planes where d is well inside their span, else its error bound E."""
-    k = EPA_IOFF + EPA_CORNERS + 3 * v
+    k = CORNERS + 3 * v
     (a0, a1, a2, ha, b0, b1, b2, hb, c0, c1, c2, hc,
      x00, x01, x02, x10, x11, x12, x20, x21, x22, det) = _corner_system(work, iw[k], iw[k + 1], iw[k + 2])
-    row = EPA_ROW + EPA_PA + v
+    row = PA_ROW + v
     y0, y1, y2, err = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
     if not abs(det) > 16.0 * EPS:
         return err
@@ -285,7 +317,7 @@ def _error_along(work, iw, v, d0, d1, d2):
 @kernel
 def _norm_bound(work, iw, v):
     """An upper bound on |x*| for vertex v."""
-    row = EPA_ROW + EPA_PA + v
+    row = PA_ROW + v
     y0, y1, y2, err = work[row, 0], work[row, 1], work[row, 2], work[row, 3]
     yn = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
     if not yn > err:
@@ -296,7 +328,7 @@ def _norm_bound(work, iw, v):
 
 @kernel(inline="always")
 def _has_plane(iw, v, p):
-    k = EPA_IOFF + EPA_CORNERS + 3 * v
+    k = CORNERS + 3 * v
     return iw[k] == p or iw[k + 1] == p or iw[k + 2] == p
 
 
@@ -309,14 +341,15 @@ def _vertex_bound(pair, sides, work, iw, v, tol_abs, tol_rel):
 
 
 @kernel
-def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
+def centre_set_bounds(pair, tol_abs, tol_rel, max_cuts, warm, work, iw):
     """Bounds on the signed distance of two cores (A's frame, margins not included), one of them at least
-    a ball hull, from its set of centres (module docstring).
+    a ball hull, from its set of centres (module docstring), after at most max_cuts cuts.
 
     Returns (code, lower, upper, u0, u1, u2, cuts): code BH_OK when lower <= sd <= upper hold and met
     the tolerance (the stopping rule of spq.kernels.epa.bounds_closed), u the unit normal along which
     sd >= lower is reached as -h_D(u) (its supports are the witness points); otherwise why not. Uses the
-    EPA's scratch rows and the descent's: call it after the EPA, never during.
+    upper halves of the EPA's vertex and face blocks (SLOT0, FACE0), its support rows and the descent's
+    rows: an EPA whose polytope fits the lower halves can go on after it.
     """
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     sides = ball_sides(kA, kB)
@@ -335,7 +368,7 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
             hl, h, d0, d1, d2 = _cut_support(pair, sides, S, u0, u1, u2, warm, work)
             if h > lower_m:
                 lower_m, b0, b1, b2 = h, d0, d1, d2
-            row = EPA_ROW + EPA_W + p
+            row = PLANE_ROW + p
             work[row, 0], work[row, 1], work[row, 2], work[row, 3] = u0, u1, u2, hl
     nv = 0
     for sx in range(2):
@@ -351,9 +384,9 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
         far = -1
         upper_m = -math.inf
         for v in range(nv):
-            if iw[EPA_IOFF + EPA_ALIVE + v] == 0:
+            if iw[ALIVE + v] == 0:
                 continue
-            row = EPA_ROW + EPA_PA + v
+            row = PA_ROW + v
             y0, y1, y2 = work[row, 0], work[row, 1], work[row, 2]
             if sides == BOTH_BALLS and math.sqrt(y0 * y0 + y1 * y1 + y2 * y2) * (1.0 + 4.0 * EPS) + work[
                     row, 3] <= upper_m:
@@ -365,9 +398,9 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
             return BH_DEGENERATE, -math.inf, math.inf, b0, b1, b2, cuts
         if _closed(upper_m - S, lower_m - S, tol_abs, tol_rel):
             return BH_OK, lower_m - S, upper_m - S, b0, b1, b2, cuts
-        if cuts >= MAX_CUTS or n_planes >= EPA_MAX_VERTICES:
+        if cuts >= max_cuts or n_planes >= MAX_PLANES:
             return BH_BUDGET, lower_m - S, upper_m - S, b0, b1, b2, cuts
-        row = EPA_ROW + EPA_PA + far
+        row = PA_ROW + far
         y0, y1, y2 = work[row, 0], work[row, 1], work[row, 2]
         if sides == BOTH_BALLS:  # along the farthest vertex: the norm's gradient
             yn = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
@@ -375,7 +408,7 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
                 return BH_DEGENERATE, lower_m - S, upper_m - S, b0, b1, b2, cuts
             u0, u1, u2 = y0 / yn, y1 / yn, y2 / yn
         else:  # along Y's normal at the farthest vertex: sd_Y's gradient
-            grow = EPA_ROW + EPA_PB + far
+            grow = PB_ROW + far
             u0, u1, u2 = work[grow, 0], work[grow, 1], work[grow, 2]
             if u0 == 0.0 and u1 == 0.0 and u2 == 0.0:
                 # the farthest vertex lies inside Y, so all of Q may: depths inside Y are not bounded here
@@ -392,9 +425,9 @@ def centre_set_bounds(pair, tol_abs, tol_rel, warm, work, iw):
         while loosened:
             loosened = False
             for v in range(nv):
-                if iw[EPA_IOFF + EPA_ALIVE + v] == 0:
+                if iw[ALIVE + v] == 0:
                     continue
-                row = EPA_ROW + EPA_PA + v
+                row = PA_ROW + v
                 g = u0 * work[row, 0] + u1 * work[row, 1] + u2 * work[row, 2]
                 slack = ROUNDING * (abs(g) + abs(hl))
                 if abs(g - hl) > 2.0 * work[row, 3] + slack:
@@ -422,30 +455,30 @@ def _closed(upper, lower, tol_abs, tol_rel):
 def _cut(work, iw, nv, p, u0, u1, u2, h):
     """Cut P by plane p := (u, h): drop the vertices beyond it and add one on each edge from a dropped
     vertex to a kept one. Returns (code, new vertex count bound)."""
-    row = EPA_ROW + EPA_W + p
+    row = PLANE_ROW + p
     work[row, 0], work[row, 1], work[row, 2], work[row, 3] = u0, u1, u2, h
     n_dead = 0
     for v in range(nv):
-        if iw[EPA_IOFF + EPA_ALIVE + v] == 0:
+        if iw[ALIVE + v] == 0:
             continue
-        row = EPA_ROW + EPA_PA + v
+        row = PA_ROW + v
         if u0 * work[row, 0] + u1 * work[row, 1] + u2 * work[row, 2] > h:
-            iw[EPA_IOFF + EPA_DEAD + n_dead] = v
+            iw[DEAD + n_dead] = v
             n_dead += 1
-            iw[EPA_IOFF + EPA_ALIVE + v] = 2  # to be dropped
+            iw[ALIVE + v] = 2  # to be dropped
     if n_dead == 0:
         return BH_DEGENERATE, nv
     made = 0
     free = 0  # the next slot to try for a new vertex: first the dropped ones' (after this pass), then nv
     top = nv
     for i in range(n_dead):
-        v = iw[EPA_IOFF + EPA_DEAD + i]
-        k = EPA_IOFF + EPA_CORNERS + 3 * v
+        v = iw[DEAD + i]
+        k = CORNERS + 3 * v
         for e in range(3):
             pq0, pq1 = iw[k + e], iw[k + (e + 1) % 3]
             found = -1
             for w in range(nv):
-                if w == v or iw[EPA_IOFF + EPA_ALIVE + w] == 0:
+                if w == v or iw[ALIVE + w] == 0:
                     continue
                 if _has_plane(iw, w, pq0) and _has_plane(iw, w, pq1):
                     if found >= 0:
@@ -453,38 +486,59 @@ def _cut(work, iw, nv, p, u0, u1, u2, h):
                     found = w
             if found < 0:
                 return BH_DEGENERATE, nv
-            if iw[EPA_IOFF + EPA_ALIVE + found] == 2:
+            if iw[ALIVE + found] == 2:
                 continue  # both ends dropped: the edge goes
             if top >= MAX_VERTICES:
                 return BH_BUDGET, nv
             if not _set_vertex(work, iw, top, pq0, pq1, p):
                 return BH_DEGENERATE, nv
-            iw[EPA_IOFF + EPA_ALIVE + top] = 3  # new: not an end of the edges of this pass
+            iw[ALIVE + top] = 3  # new: not an end of the edges of this pass
             top += 1
             made += 1
     if made < 3:
         return BH_DEGENERATE, nv
     for v in range(top):
-        a = iw[EPA_IOFF + EPA_ALIVE + v]
+        a = iw[ALIVE + v]
         if a == 2:
-            iw[EPA_IOFF + EPA_ALIVE + v] = 0
+            iw[ALIVE + v] = 0
         elif a == 3:
-            iw[EPA_IOFF + EPA_ALIVE + v] = 1
+            iw[ALIVE + v] = 1
     # compact: move the last live vertices into dropped slots so the scan stays short
-    while top > 0 and iw[EPA_IOFF + EPA_ALIVE + top - 1] == 0:
+    while top > 0 and iw[ALIVE + top - 1] == 0:
         top -= 1
     while free < top:
-        if iw[EPA_IOFF + EPA_ALIVE + free] == 0:
+        if iw[ALIVE + free] == 0:
             last = top - 1
             for c in range(4):
-                work[EPA_ROW + EPA_PA + free, c] = work[EPA_ROW + EPA_PA + last, c]
-                work[EPA_ROW + EPA_PB + free, c] = work[EPA_ROW + EPA_PB + last, c]
+                work[PA_ROW + free, c] = work[PA_ROW + last, c]
+                work[PB_ROW + free, c] = work[PB_ROW + last, c]
             for c in range(3):
-                iw[EPA_IOFF + EPA_CORNERS + 3 * free + c] = iw[EPA_IOFF + EPA_CORNERS + 3 * last + c]
-            iw[EPA_IOFF + EPA_ALIVE + free] = 1
-            iw[EPA_IOFF + EPA_ALIVE + last] = 0
+                iw[CORNERS + 3 * free + c] = iw[CORNERS + 3 * last + c]
+            iw[ALIVE + free] = 1
+            iw[ALIVE + last] = 0
             top -= 1
-            while top > 0 and iw[EPA_IOFF + EPA_ALIVE + top - 1] == 0:
+            while top > 0 and iw[ALIVE + top - 1] == 0:
                 top -= 1
         free += 1
     return BH_OK, top
+
+
+@kernel
+def settle_from_centres(pair, tol, upper, iterations, warm, work, iw, out):
+    """Whether the bounds from the set of centres (centre_set_bounds, tol = (tol_abs, tol_rel, max_cuts))
+    with a known upper bound ``upper`` on sd meet the tolerance; the result (cores, A's frame, margins
+    not included: normal, supports as witness points, bounds, status, iterations + cuts) is then in
+    out. The lower bound is -h_D(u), reached along the normal u by its supports, the witness points
+    (an EPA's lower bound, its best support over the run, need not be reached along its normal, its
+    least face's)."""
+    tol_abs, tol_rel, max_cuts = tol
+    code, low, up, u0, u1, u2, cuts = centre_set_bounds(pair, tol_abs, tol_rel, max_cuts, warm, work, iw)
+    if code != BH_OK:
+        return False
+    up = min(up, upper)
+    if not bounds_closed(up, low, tol_abs, tol_rel):
+        return False
+    out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = u0, u1, u2
+    supports_as_witnesses(pair, warm, work, out)
+    set_result(up, low, iterations + cuts, tol_abs, out)
+    return True

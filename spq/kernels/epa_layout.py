@@ -18,6 +18,10 @@ edge from corner k to corner k + 1), an alive flag and a visit stamp; the free s
 of an expansion (4 per edge: from, to, outside face, that face's edge); the walk's stack (3 per
 entry: face, next edge, edges left); the faces an expansion removes; per vertex the support
 features of A and of B it came from (a polytope's vertex, an STP-BV's patch).
+
+The bounds from a ball hull's set of centres (spq.kernels.ball_hull_depth) keep their own polytope in
+the upper halves of the vertex blocks and of the per-face int blocks, which a run that tries them
+midway (spq.kernels.epa.CENTRES_AFTER) has not reached, so that it can go on from its polytope after.
 """
 
 EPA_MAX_VERTICES = 4096  # support points: the initial tetrahedron, then one per EPA step (see epa.EPA_MAX_STEPS)

@@ -23,7 +23,7 @@ from spq.kernels.gjk import OUT_DISTANCE, OUT_ITERATIONS, OUT_LOWER, OUT_NORMAL,
     OUT_STATUS, OUT_UPPER, OVERLAPPING
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import BOX, POINT, SEGMENT
-from spq.kernels.signed import status_of
+from spq.kernels.signed_out import status_of
 
 PARALLEL = 1e-12  # 1 - cos^2 of the segments' angle below which they are treated as parallel
 MEET = 1e-9  # the cores' distance over their scale at or below which the general path takes the pair

@@ -76,12 +76,10 @@ from spq.kernels.signed import (
     separated_result,
     settle_by_centres,
     signed_finish,
-    status_of,
-    supports_as_witnesses,
     core_support,
-    set_result,
     unsigned_of_signed,
 )
+from spq.kernels.signed_out import set_result, status_of, supports_as_witnesses
 from spq.kernels.superellipsoid_support import FDATA_SIZE
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from spq.kernels.ball_hull_depth import BH_OK, centre_set_bounds, is_ball_hull
+from spq.kernels.ball_hull_depth import MAX_CUTS, is_ball_hull, settle_from_centres
 from spq.kernels.epa import EPA_FLAT, EPA_RESULT, bounds_closed, epa
 from spq.kernels.gjk import (
     FAILED,
@@ -43,19 +43,10 @@ from spq.kernels.gjk import (
 )
 from spq.kernels.jit import kernel
 from spq.kernels.newton_normal import step_on_sphere, tangent_basis
+from spq.kernels.signed_out import set_result, status_of
 
 # how signed_from_hulls ended, kept in the scratch (work[EPA_ROW + EPA_TMP + 1, 3]) for diagnostics
 HULL_SETTLED, HULL_CONTINUED, HULL_RESTARTED, HULL_PATCHES, HULL_CORES = 1, 2, 3, 4, 5
-
-
-@kernel(inline="always")
-def status_of(sd, tol_abs):
-    """'overlapping' below -tol_abs, 'touching' within it, 'separated' above."""
-    if sd < -tol_abs:
-        return OVERLAPPING
-    if sd <= tol_abs:
-        return TOUCHING
-    return SEPARATED
 
 
 @kernel
@@ -191,25 +182,15 @@ def signed_finish(pair, tol, status, k, vv, lower, it,
 
 @kernel
 def settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out):
-    """A failed result where a side is a ball hull (an STP-BV, a sphere: cores, A's frame) settled from
-    its set of centres where that bounds sd to the tolerance (spq.kernels.ball_hull_depth: against the
-    other's set of centres, or against the other body by point queries); any other result stays as it
-    is."""
+    """A failed result where a side is a ball hull (an STP-BV, its core, a sphere: cores, A's frame)
+    settled from its set of centres where that bounds sd to the tolerance (spq.kernels.ball_hull_depth:
+    against the other's set of centres, or against the other body by point queries); any other result
+    stays as it is."""
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     if out[OUT_STATUS] != FAILED or not (is_ball_hull(kA) or is_ball_hull(kB)):
         return
-    code, low, up, u0, u1, u2, cuts = centre_set_bounds(pair, tol_abs, tol_rel, warm, work,
-                                                        iwork)
-    if code != BH_OK:
-        return
-    # the lower bound is -h_D(u), reached along the normal u by its supports, the witness points (a
-    # failed EPA's own lower bound need not be reached along its normal, its least face's)
-    upper = min(up, out[OUT_UPPER])
-    if not bounds_closed(upper, low, tol_abs, tol_rel):
-        return
-    out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = u0, u1, u2
-    supports_as_witnesses(pair, warm, work, out)
-    set_result(upper, low, out[OUT_ITERATIONS] + cuts, tol_abs, out)
+    settle_from_centres(pair, (tol_abs, tol_rel, MAX_CUTS), out[OUT_UPPER], out[OUT_ITERATIONS], warm, work, iwork,
+                        out)
 
 
 SEARCH_FIRST_STEP = 1e-4  # rad: the search's first step about the normal
@@ -275,29 +256,3 @@ def core_support(pair, n0, n1, n2, warm, work):
     tmp = work[18]
     minkowski_support(pair, n0, n1, n2, warm, pa, pb, tmp)
     return n0 * (pa[0] - pb[0]) + n1 * (pa[1] - pb[1]) + n2 * (pa[2] - pb[2])
-
-
-@kernel
-def set_result(upper, lower, iterations, tol_abs, out):
-    out[OUT_DISTANCE] = upper
-    out[OUT_UPPER] = upper
-    out[OUT_LOWER] = min(lower, upper)  # rounding may cross them by an ulp
-    out[OUT_ITERATIONS] = iterations
-    out[OUT_STATUS] = status_of(upper, tol_abs)
-
-
-@kernel
-def supports_as_witnesses(pair, warm, work, out):
-    """Witness points: the bodies' supports along out's normal n (A's) and -n (B's)."""
-    kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
-    n0, n1, n2 = out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2]
-    if not (n0 == n0):
-        n0, n1, n2 = 1.0, 0.0, 0.0
-        out[OUT_NORMAL], out[OUT_NORMAL + 1], out[OUT_NORMAL + 2] = n0, n1, n2
-    pa = work[16]
-    pb = work[17]
-    tmp = work[18]
-    minkowski_support(pair, n0, n1, n2, warm, pa, pb, tmp)
-    for c in range(3):
-        out[OUT_POINT_A + c] = pa[c]
-        out[OUT_POINT_B + c] = pb[c]
