@@ -229,6 +229,7 @@ def _pack(A: Shape, B: Shape, tol, rel_tol, max_iter, signed) -> tuple[np.ndarra
     floats = np.zeros(kb.FLOATS_SIZE)
     floats[kb.F_MARGIN_A], floats[kb.F_MARGIN_B], floats[kb.F_TOL_ABS], floats[kb.F_TOL_REL] = (
         ka.margin, kb_.margin, tol, rel_tol)
+    floats[kb.F_CENTRES:kb.F_CENTRES + 3], floats[kb.F_CENTRES + 3:kb.F_DIR] = A.aim_point(), B.aim_point()
     return ints, floats
 
 

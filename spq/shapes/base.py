@@ -41,3 +41,17 @@ class Shape:
     def bounding_radius(self) -> float:
         """Radius (m) of a ball centred at the local origin that contains the shape."""
         raise NotImplementedError  # pragma: no cover - abstract
+
+    def aim_point(self) -> np.ndarray:
+        """(3,) a point near the shape's middle (local frame, m). A query without a warm start searches
+        first along the line from A's aim point to B's: only a start, which changes no result beyond
+        the tolerance. Here the local origin, the middle of every shape symmetric about it; a hull's
+        or an STP-BV's is the centre of the box about its points, as a mesh's origin often lies far
+        from its middle (a robot link's at its joint), and an aim from there took 10% to 30% more GJK
+        steps (two copies of kuka_link_4 moved 0.1 to 1 m off their origin, at random poses)."""
+        return np.zeros(3)
+
+
+def box_centre(points: np.ndarray) -> np.ndarray:
+    """(3,) the centre of the axis-aligned box about points (n, 3)."""
+    return 0.5 * (points.min(axis=0) + points.max(axis=0))

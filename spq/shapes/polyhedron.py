@@ -10,7 +10,7 @@ from spq.io.mesh import load_mesh_vertices
 from spq.io.qhull import read_qhull_off
 from spq.kernels import kinds
 from spq.kernels.support import cell_candidates, cube_map_idata, cube_map_size
-from spq.shapes.base import KernelData, Shape
+from spq.shapes.base import KernelData, Shape, box_centre
 from spq.validation import as_points
 
 FLATNESS_TOL = 1e-9  # smallest/largest singular value of the centred cloud below which it is flat
@@ -84,6 +84,7 @@ class Polyhedron(Shape):
             self.face_normals = np.ascontiguousarray(planes[:, :3])
             self.face_offsets = np.ascontiguousarray(-planes[:, 3])
         self._kernel = None
+        self._aim = None  # aim_point's, made on first use
         # whether the triangles are qhull's (the boundary of the vertices' convex hull): the cube map
         # is then built by walks over their edges (spq.kernels.support.cell_candidates), which needs
         # that; triangles from elsewhere get the scan, which does not
@@ -133,6 +134,12 @@ class Polyhedron(Shape):
 
     def bounding_radius(self) -> float:
         return float(np.sqrt((self.vertices**2).sum(axis=1).max()))
+
+    def aim_point(self) -> np.ndarray:
+        """See :meth:`Shape.aim_point`: the centre of the box about its points."""
+        if self._aim is None:
+            self._aim = box_centre(self.vertices)
+        return self._aim
 
     def to_mesh(self):
         """This hull as a ``trimesh.Trimesh`` (local frame, metres): its vertices and outward

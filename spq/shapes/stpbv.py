@@ -8,7 +8,7 @@ import numpy as np
 
 from spq.kernels import kinds
 from spq.kernels import stp_support as ks
-from spq.shapes.base import KernelData, Shape
+from spq.shapes.base import KernelData, Shape, box_centre
 from spq.stp.topology import NO_FACE, STPTopology
 
 
@@ -120,6 +120,7 @@ class STPBV(Shape):
         self._build_patches()
         self._build_hull()
         self._kernel = None
+        self._aim = None  # aim_point's, made on first use
         self.method = method
 
     # --- constructors -------------------------------------------------------------------------
@@ -354,6 +355,12 @@ class STPBV(Shape):
     def bounding_radius(self) -> float:
         topo = self.topology
         return float(np.sqrt((topo.vertices**2).sum(axis=1).max()) + self.r)
+
+    def aim_point(self) -> np.ndarray:
+        """See :meth:`Shape.aim_point`: the centre of the box about its points."""
+        if self._aim is None:
+            self._aim = box_centre(self.topology.vertices)
+        return self._aim
 
     # --- queries ------------------------------------------------------------------------------
     def support(self, directions, method: str | None = None, coherent: bool = False) -> np.ndarray:
