@@ -40,6 +40,7 @@ from spq.kernels.batch import I_SIGNED
 from spq.kinematics import PRISMATIC, MeshGeometry, PrimitiveGeometry, RobotModel
 from spq.query import (DEFAULT_MAX_ITER, DEFAULT_TOL_ABS, DEFAULT_TOL_REL, BatchDistances, _check_tolerances,
                        check_signed)
+from spq.shapes.base import box_centre
 from spq.shapes.polyhedron import Polyhedron
 from spq.shapes.primitives import Box, Capsule, Sphere
 from spq.shapes.stpbv import STPBV
@@ -184,7 +185,7 @@ class SceneDistances(BatchDistances):
 
 def _bounding_sphere(points: np.ndarray, grow: float) -> tuple[np.ndarray, float]:
     """Centre (box centre) and radius of a sphere around points grown by ``grow``."""
-    c = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    c = box_centre(points)
     return c, float(np.sqrt(((points - c) ** 2).sum(axis=1).max()) + grow)
 
 
