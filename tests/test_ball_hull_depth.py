@@ -3,6 +3,7 @@
 support of harness.references.stp_oracle inside the depth oracle) and beside the EPA's own result."""
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -15,8 +16,8 @@ from harness.suites.fuzz.judge import slack
 from harness.suites.fuzz.oracle import oracle_shape, reference, separation_bounds, spq_shape
 from harness.suites.fuzz.families import draw_case
 from harness.suites.fuzz.judge import judge_case
-from spq.kernels.ball_hull_depth import BH_NOT_BALLS, BH_OK, FACE0, MAX_CUTS, SLOT0, centre_set_bounds
-from spq.kernels.epa import CENTRES_AFTER, CENTRES_CUTS
+from spq.kernels.ball_hull_depth import BH_BUDGET, BH_NOT_BALLS, BH_OK, FACE0, MAX_CUTS, SLOT0, centre_set_bounds
+from spq.kernels.epa import CENTRES_AFTER, CENTRES_AFTER_BALLS, CENTRES_CUTS, CENTRES_EARLY_WIDTH
 from spq.kernels.epa_layout import EPA_ALIVE, EPA_CORNERS, EPA_DEAD, EPA_FEATURES, EPA_PA, EPA_PB, EPA_TMP, EPA_W
 from spq.kernels.gjk import DESCENT_ROWS, EPA_IOFF, EPA_ROW, IWORK_SIZE, WORK_ROWS
 
@@ -40,7 +41,7 @@ def _bounds(A, B, pose_a, pose_b, work=None, iwork=None):
     work = np.zeros((WORK_ROWS, 4)) if work is None else work
     iwork = np.zeros(IWORK_SIZE, dtype=np.int64) if iwork is None else iwork
     warm = np.zeros(2, dtype=np.int64)
-    code, lo, up, u0, u1, u2, _ = centre_set_bounds(pair, TOL, REL, MAX_CUTS, warm, work, iwork)
+    code, lo, up, u0, u1, u2, _ = centre_set_bounds(pair, TOL, REL, MAX_CUTS, math.inf, warm, work, iwork)
     return code, lo - margins, up - margins, np.array([u0, u1, u2])
 
 
@@ -183,14 +184,33 @@ def _judged(family, a, b, pose_a, pose_b):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_nearly_round_overlaps_settle_from_their_centres_early(seed):
     """Two STP-BVs near their least R, one deep in the other, took the EPA 800 to 4,100 expansions (1.8 to
-    15 ms; the fuzz family stp-min-R); it now tries the centres once after CENTRES_AFTER, which close
-    them in a few cuts. Each query, judged against the depth oracle like a campaign's, is right, and
-    ends within the expansions and cuts of that attempt (plus the hulls' search)."""
+    15 ms; the fuzz family stp-min-R); between two ball hulls whose sets of centres are narrow it now tries
+    the centres after CENTRES_AFTER_BALLS (the other runs after CENTRES_AFTER), which close them in a few
+    cuts. Each query, judged against the depth oracle like a campaign's, is right, and ends within the
+    expansions and cuts of that early attempt, before the later one would start (43 to 73 iterations)."""
     for a, b, pose_a, pose_b in _nested_cases(seed, 6):
         r = spq.distance(spq_shape(a), spq_shape(b), pose_a, pose_b, signed=True)
         assert r.status == "overlapping"
-        assert r.iterations <= CENTRES_AFTER + CENTRES_CUTS + 64
+        assert r.iterations <= CENTRES_AFTER_BALLS + CENTRES_CUTS < CENTRES_AFTER
         assert not _judged("stp-min-R", a, b, pose_a, pose_b)
+
+
+def test_a_wide_set_of_centres_ends_its_early_attempt_at_its_box():
+    """Between two STP-BVs with R well above their least (a 0.1 m body at R = 2 m, as the benches' and a
+    robot's), the set of centres is wider than the balls' radii, where the cuts close slowly: the early
+    attempt ends after the box's six supports, with no cut, where a narrow set (R near its least) goes on."""
+    rng = np.random.default_rng(7)
+    pose_b = np.eye(4)
+    pose_b[:3, 3] = [0.02, -0.01, 0.03]
+    wide = [spq.STPBV.from_points(cloud_random(rng, 40) * 0.1, 0.005, 2.0) for _ in range(2)]
+    narrow = [spq_shape(s) for s in next(_nested_cases(3, 1))[:2]]
+    work, iwork, warm = np.zeros((WORK_ROWS, 4)), np.zeros(IWORK_SIZE, dtype=np.int64), np.zeros(2, dtype=np.int64)
+    pair = _kernel_pair(wide[0], wide[1], np.eye(4), pose_b)[0]
+    code, _, _, _, _, _, cuts = centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, CENTRES_EARLY_WIDTH, warm, work, iwork)
+    assert (code, cuts) == (BH_BUDGET, 0)
+    assert centre_set_bounds(pair, TOL, REL, 2, math.inf, warm, work, iwork)[6] > 0  # any width: it cuts
+    pair = _kernel_pair(narrow[0], narrow[1], np.eye(4), pose_b)[0]
+    assert centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, CENTRES_EARLY_WIDTH, warm, work, iwork)[0] == BH_OK
 
 
 def test_the_nearly_round_reproducer_settles_early():
@@ -220,6 +240,6 @@ def test_a_run_goes_on_from_its_polytope_after_centres_that_do_not_close(case, p
     assert r.status == "overlapping"
     pair = _kernel_pair(A, B, poses_a[pose], poses_b[pose])[0]
     work, iwork, warm = np.zeros((WORK_ROWS, 4)), np.zeros(IWORK_SIZE, dtype=np.int64), np.zeros(2, dtype=np.int64)
-    assert centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, warm, work, iwork)[0] != BH_OK  # the attempt does not close
+    assert centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, math.inf, warm, work, iwork)[0] != BH_OK  # the attempt does not close
     assert r.iterations > CENTRES_AFTER + CENTRES_CUTS  # the run went on past it
     assert not _judged("stp-min-R", a, b, poses_a[pose], poses_b[pose])

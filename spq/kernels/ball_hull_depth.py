@@ -341,9 +341,10 @@ def _vertex_bound(pair, sides, work, iw, v, tol_abs, tol_rel):
 
 
 @kernel
-def centre_set_bounds(pair, tol_abs, tol_rel, max_cuts, warm, work, iw):
+def centre_set_bounds(pair, tol_abs, tol_rel, max_cuts, max_width, warm, work, iw):
     """Bounds on the signed distance of two cores (A's frame, margins not included), one of them at least
-    a ball hull, from its set of centres (module docstring), after at most max_cuts cuts.
+    a ball hull, from its set of centres (module docstring), after at most max_cuts cuts, and none where the
+    set's box is wider than max_width times S (the balls' radii) along an axis (inf: any width).
 
     Returns (code, lower, upper, u0, u1, u2, cuts): code BH_OK when lower <= sd <= upper hold and met
     the tolerance (the stopping rule of spq.kernels.epa.bounds_closed), u the unit normal along which
@@ -370,6 +371,10 @@ def centre_set_bounds(pair, tol_abs, tol_rel, max_cuts, warm, work, iw):
                 lower_m, b0, b1, b2 = h, d0, d1, d2
             row = PLANE_ROW + p
             work[row, 0], work[row, 1], work[row, 2], work[row, 3] = u0, u1, u2, hl
+    for axis in range(3):
+        # (a wide set closes slowly, its farthest point on a curved face: a hopeful attempt ends at its box)
+        if work[PLANE_ROW + 2 * axis, 3] + work[PLANE_ROW + 2 * axis + 1, 3] > max_width * S:
+            return BH_BUDGET, -math.inf, math.inf, b0, b1, b2, 0
     nv = 0
     for sx in range(2):
         for sy in range(2):
@@ -525,14 +530,14 @@ def _cut(work, iw, nv, p, u0, u1, u2, h):
 
 @kernel
 def settle_from_centres(pair, tol, upper, iterations, warm, work, iw, out):
-    """Whether the bounds from the set of centres (centre_set_bounds, tol = (tol_abs, tol_rel, max_cuts))
+    """Whether the bounds from the set of centres (centre_set_bounds, tol = (tol_abs, tol_rel, max_cuts, max_width))
     with a known upper bound ``upper`` on sd meet the tolerance; the result (cores, A's frame, margins
     not included: normal, supports as witness points, bounds, status, iterations + cuts) is then in
     out. The lower bound is -h_D(u), reached along the normal u by its supports, the witness points
     (an EPA's lower bound, its best support over the run, need not be reached along its normal, its
     least face's)."""
-    tol_abs, tol_rel, max_cuts = tol
-    code, low, up, u0, u1, u2, cuts = centre_set_bounds(pair, tol_abs, tol_rel, max_cuts, warm, work, iw)
+    tol_abs, tol_rel, max_cuts, max_width = tol
+    code, low, up, u0, u1, u2, cuts = centre_set_bounds(pair, tol_abs, tol_rel, max_cuts, max_width, warm, work, iw)
     if code != BH_OK:
         return False
     up = min(up, upper)

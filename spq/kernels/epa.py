@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 
-from spq.kernels.ball_hull_depth import FACE0, NO_BALLS, SLOT0, ball_sides, settle_from_centres
+from spq.kernels.ball_hull_depth import BOTH_BALLS, FACE0, NO_BALLS, SLOT0, ball_sides, settle_from_centres
 from spq.kernels.epa_layout import (
     EPA_ADJ,
     EPA_ALIVE,
@@ -133,8 +133,14 @@ CAPS_AFTER = 128  # steps of a run before it takes the sphere caps (see epa_run)
 # the bounds from its set of centres once (spq.kernels.ball_hull_depth), with at most CENTRES_CUTS cuts, and
 # goes on where they do not close: a nearly round D (an STP-BV near its least R holding a body deep inside
 # it) took the EPA 800 to 4,100 steps (1.8 to 15 ms) where the centres close in 2 to 50 cuts (10 to 120 us);
-# kuka_link_4's STP-BV overlaps take at most 79 steps, so they never reach it
+# kuka_link_4's STP-BV overlaps take at most 79 steps, so they never reach it. Between two ball hulls (two
+# STP-BVs' cores) the cuts need no point queries, so a run whose set of centres is narrow (its box at most
+# CENTRES_EARLY_WIDTH times the balls' radii along each axis: STP-BVs near their least R) tries them sooner,
+# after CENTRES_AFTER_BALLS steps; a wide set (kuka_link_4's at R = 2 m: about twice) closes slowly, so there
+# the attempt ends at its box (stop 131)
 CENTRES_AFTER = 128
+CENTRES_AFTER_BALLS = 32
+CENTRES_EARLY_WIDTH = 0.25
 CENTRES_CUTS = 64
 # Faces a run may set aside when floating point cannot make their expansion (see _block): a fan
 # along a ridge of D that its support points trace as a line (a boxy superellipsoid's straight edge
@@ -1197,8 +1203,10 @@ def epa_run(pair, tol, nv, top, c, upper, lower, warm,
             if it >= steps or nv >= EPA_MAX_VERTICES:
                 stop = STOP_ITERATIONS if it >= steps else STOP_VERTICES
                 break
-            if it == CENTRES_AFTER and balls and off >= 0.0 and nv <= SLOT0 and top <= FACE0 and settle_from_centres(
-                    pair, (tol_abs, tol_rel, CENTRES_CUTS), upper, it, warm, work, iw, out):
+            if (it == CENTRES_AFTER or it == CENTRES_AFTER_BALLS) and balls and off >= 0.0 and nv <= SLOT0 and \
+                    top <= FACE0 and (it == CENTRES_AFTER or ball_sides(kA, kB) == BOTH_BALLS) and settle_from_centres(
+                    pair, (tol_abs, tol_rel, CENTRES_CUTS, math.inf if it == CENTRES_AFTER else CENTRES_EARLY_WIDTH),
+                    upper, it, warm, work, iw, out):
                 # (the origin in P, which lies in the lower halves of its blocks: the run goes on if they do not
                 # close, from the same polytope; only the descent's rows and the support hints are overwritten)
                 work[EPA_ROW + EPA_TMP, 3] = STOP_CENTRES
