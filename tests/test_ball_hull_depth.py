@@ -206,7 +206,8 @@ def test_a_wide_set_of_centres_ends_its_early_attempt_at_its_box():
     narrow = [spq_shape(s) for s in next(_nested_cases(3, 1))[:2]]
     work, iwork, warm = np.zeros((WORK_ROWS, 4)), np.zeros(IWORK_SIZE, dtype=np.int64), np.zeros(2, dtype=np.int64)
     pair = _kernel_pair(wide[0], wide[1], np.eye(4), pose_b)[0]
-    code, _, _, _, _, _, cuts = centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, CENTRES_EARLY_WIDTH, warm, work, iwork)
+    code, _, _, _, _, _, cuts = centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, CENTRES_EARLY_WIDTH, warm, work,
+                                                  iwork)
     assert (code, cuts) == (BH_BUDGET, 0)
     assert centre_set_bounds(pair, TOL, REL, 2, math.inf, warm, work, iwork)[6] > 0  # any width: it cuts
     pair = _kernel_pair(narrow[0], narrow[1], np.eye(4), pose_b)[0]
@@ -240,6 +241,7 @@ def test_a_run_goes_on_from_its_polytope_after_centres_that_do_not_close(case, p
     assert r.status == "overlapping"
     pair = _kernel_pair(A, B, poses_a[pose], poses_b[pose])[0]
     work, iwork, warm = np.zeros((WORK_ROWS, 4)), np.zeros(IWORK_SIZE, dtype=np.int64), np.zeros(2, dtype=np.int64)
-    assert centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, math.inf, warm, work, iwork)[0] != BH_OK  # the attempt does not close
+    # the attempt does not close
+    assert centre_set_bounds(pair, TOL, REL, CENTRES_CUTS, math.inf, warm, work, iwork)[0] != BH_OK
     assert r.iterations > CENTRES_AFTER + CENTRES_CUTS  # the run went on past it
     assert not _judged("stp-min-R", a, b, poses_a[pose], poses_b[pose])

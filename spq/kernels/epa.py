@@ -136,8 +136,8 @@ CAPS_AFTER = 128  # steps of a run before it takes the sphere caps (see epa_run)
 # kuka_link_4's STP-BV overlaps take at most 79 steps, so they never reach it. Between two ball hulls (two
 # STP-BVs' cores) the cuts need no point queries, so a run whose set of centres is narrow (its box at most
 # CENTRES_EARLY_WIDTH times the balls' radii along each axis: STP-BVs near their least R) tries them sooner,
-# after CENTRES_AFTER_BALLS steps; a wide set (kuka_link_4's at R = 2 m: about twice) closes slowly, so there
-# the attempt ends at its box (stop 131)
+# after CENTRES_AFTER_BALLS steps (and again after CENTRES_AFTER where that does not close); a wide set
+# (kuka_link_4's at R = 2 m: about twice) closes slowly, so there the early attempt ends at its box (stop 131)
 CENTRES_AFTER = 128
 CENTRES_AFTER_BALLS = 32
 CENTRES_EARLY_WIDTH = 0.25

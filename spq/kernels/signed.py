@@ -189,8 +189,8 @@ def settle_by_centres(pair, tol_abs, tol_rel, warm, work, iwork, out):
     kA, mA, fA, iA, kB, mB, fB, iB, R, t = pair
     if out[OUT_STATUS] != FAILED or not (is_ball_hull(kA) or is_ball_hull(kB)):
         return
-    settle_from_centres(pair, (tol_abs, tol_rel, MAX_CUTS, math.inf), out[OUT_UPPER], out[OUT_ITERATIONS], warm, work, iwork,
-                        out)
+    settle_from_centres(pair, (tol_abs, tol_rel, MAX_CUTS, math.inf), out[OUT_UPPER], out[OUT_ITERATIONS], warm, work,
+                        iwork, out)
 
 
 SEARCH_FIRST_STEP = 1e-4  # rad: the search's first step about the normal
