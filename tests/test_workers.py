@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import spq
 from datasets import load_object
 from datasets.robots import ROBOTS
 from harness.workloads.poses import random_poses
-from spq.workers import MAX_WORKERS, chunk_bounds
+from spq.workers import CHUNKS_PER_WORKER, MAX_WORKERS, chunk_bounds
 
 N_POSES = 2048  # 4 chunks on 2 threads (MIN_PAIR_QUERIES = 512)
 FIELDS = ("distance", "point_a", "point_b", "normal", "status_code", "iterations", "lower_bound", "upper_bound")
@@ -95,6 +97,21 @@ def test_chunks_cover_the_batch_in_order():
         assert all(b[1] == c[0] for b, c in zip(bounds, bounds[1:]))
         assert len(bounds) == 1 or min(b - a for a, b in bounds) >= least
     assert chunk_bounds(10_000, 1, 4) == [(0, 10_000)]
+    assert chunk_bounds(2_000, 2, 512) == [(0, 1_000), (1_000, 2_000)]  # not three chunks on two threads
+
+
+@settings(max_examples=300, deadline=None)
+@given(n=st.integers(0, 100_000), workers=st.integers(1, 16), least=st.integers(1, 2_000))
+def test_chunks_share_evenly_between_the_workers(n, workers, least):
+    bounds = chunk_bounds(n, workers, least)
+    sizes = [b - a for a, b in bounds]
+    assert bounds[0][0] == 0 and bounds[-1][1] == n and sum(sizes) == n
+    assert max(sizes) - min(sizes) <= 1
+    assert len(bounds) <= max(1, workers * CHUNKS_PER_WORKER)
+    if len(bounds) > 1:
+        assert min(sizes) >= least
+    if len(bounds) >= workers:  # no thread left idle for a whole chunk's time at the end
+        assert len(bounds) % workers == 0
 
 
 # ---------------------------------------------------------------- scenes
