@@ -37,7 +37,7 @@ import math
 from spq.kernels.indexing import at
 from spq.kernels.jit import kernel
 from spq.kernels.kinds import SUPERELLIPSOID
-from spq.kernels.lane_powers import lanes_view, powers_in_place
+from spq.kernels.lane_powers import lanes_view, powers_in_place, rough_powers_in_place
 from spq.kernels.superellipsoid_support import (F_A, F_B, F_C, F_E1, F_E2, F_GA, F_GB, F_GC, F_HA, F_HB, F_HC, F_IA,
                                                 F_IB, F_IC, F_K, F_P1, F_P2, support_value)
 
@@ -326,7 +326,12 @@ def closest_points_newton(pair, start, tol_abs, tol_rel, best_a, best_b, work, m
         _lanes_in(fA, x0, x1, x2, lanes, 0)
         _lanes_in(fB, yb0, yb1, yb2, lanes, 3)
         lanes[6] = lanes[7] = 1.0
-        powers_in_place(lanes, exponents)
+        if last > CERTIFY_STEP * size:
+            # no certificate at this step: its points are only the next step's start, whose exact
+            # evaluation corrects them (the slab's width is second order in their error)
+            rough_powers_in_place(lanes, exponents)
+        else:
+            powers_in_place(lanes, exponents)
         FA = _implicit_lanes(fA, x0, x1, x2, lanes, 0, gA, HA)
         FB = _implicit_lanes(fB, yb0, yb1, yb2, lanes, 3, sup, HB)
         if not (FA > 0.0 and FB > 0.0 and FA < math.inf and FB < math.inf):
